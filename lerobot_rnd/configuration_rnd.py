@@ -1,0 +1,246 @@
+#!/usr/bin/env python
+"""Configuration of the Render and Diffuse (R&D) policy."""
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from lerobot.configs.policies import PreTrainedConfig
+from lerobot.configs.types import NormalizationMode
+from lerobot.optim.optimizers import AdamWConfig
+from lerobot.optim.schedulers import DiffuserSchedulerConfig
+
+RND_VARIANTS = ("A", "I", "AI")
+
+
+@PreTrainedConfig.register_subclass("rnd")
+@dataclass
+class RnDConfig(PreTrainedConfig):
+    """Configuration class for the Render and Diffuse policy (Vosylius et al., RSS 2024).
+
+    R&D represents each candidate action by rendering the robot's gripper into every calibrated camera
+    image at the pose the action would reach, and denoises the actions with a ViT that predicts, per
+    camera and per future step, how every rendered pixel of the gripper should move (image space) and/or
+    how the action itself should change (action space).
+
+    Defaults are the paper's: 8 layers of width 1024 with 16 heads, patch 16, 128x128 images, H = 2
+    observations, T = 8 future steps, 50 training diffusion steps and 4 DDIM steps at inference. For a
+    model that trains in minutes on a CPU use `policies_config/rnd_cpu.json` or pass
+    `--policy.dim_model=128 --policy.n_layers=2 --policy.n_heads=4`.
+
+    Notes on the inputs and outputs:
+        - One or more keys starting with "observation.images." are required, each with a camera calibration
+          (see `embodiment` and `cameras`).
+        - "observation.state" is required: R&D reads the end-effector pose (and the gripper state) from it,
+          as described by `ee_pose`. It is used raw (IDENTITY normalisation): R&D needs metric poses to
+          render. The image-space and action-space targets are normalised inside the model by statistics
+          estimated from the dataset and saved with the checkpoint.
+        - "action" is required as an output key; `action_adapter` converts it to and from R&D's action
+          chunk (the rigid transforms `T_ee_target` from the current end-effector pose plus a gripper bit).
+
+    Args:
+        n_obs_steps: Number of observations (history H, including the current one). The past end-effector
+            poses are rendered into their frames too, so the model sees where the gripper was.
+        chunk_size: Number of future steps T predicted per model invocation.
+        n_action_steps: Number of predicted steps executed before the policy is queried again
+            (<= chunk_size).
+        normalization_mapping: LeRobot normaliser modes. R&D keeps images, state and action raw (IDENTITY)
+            and normalises its own targets; do not change this unless you know why.
+        variant: "A" predicts in action space only, "I" in image space only (actions recovered by SVD),
+            "AI" both (the paper's best, the default).
+        embodiment: Where the camera calibration, gripper meshes, end-effector pose source and action
+            adapter come from: a preset name (see `lerobot_rnd.embodiment.EMBODIMENT_PRESETS`) or the path
+            of an embodiment JSON file (docs/CALIBRATION.md). When None, the dataset's
+            `meta/rnd_embodiment.json` is used if it exists. Resolved once at construction into `cameras`,
+            `ee_pose`, `action_adapter` and mesh buffers, so a checkpoint needs nothing else.
+        cameras: Resolved calibration per image feature key (filled automatically; editable): intrinsics
+            `K`, `image_size` (H, W), `T_world_cam` (static camera) or `T_ee_cam` (camera mounted on the end
+            effector), and the mesh rendered in it ("full" or "fingers").
+        ee_pose: Resolved description of how to read the end-effector pose and gripper state from
+            "observation.state" (filled automatically).
+        action_adapter: Resolved action adapter spec: {"name": ..., **kwargs} (filled automatically from the
+            embodiment unless given).
+        mesh_shapes: Number of vertices and faces of each gripper mesh (filled automatically; the meshes
+            themselves are buffers in model.safetensors).
+        image_size: (H, W) at which images are rendered and fed to the network. Camera images of another
+            size with the same aspect ratio are resized, and the calibration rescaled accordingly.
+        render_texture: Colour the two sides of the gripper's symmetry plane differently (False = the
+            paper's No-Texture ablation).
+        texture_colors: RGB colours (0-1) of the two sides.
+        untextured_color: RGB colour of the gripper when `render_texture` is False.
+        render_history: Render the past end-effector poses into the past frames (the paper does).
+        use_point_map_input: Feed the rendered camera-frame point map as a second image per view.
+        point_map_scale: Metres mapped to 1 in the point-map input.
+        dim_model: Transformer width.
+        n_layers: Number of self-attention layers.
+        n_heads: Number of attention heads.
+        mlp_ratio: Hidden width of the MLP blocks relative to `dim_model`.
+        patch_size: ViT patch size in pixels.
+        dropout: Dropout in the transformer blocks.
+        num_train_timesteps: Diffusion steps K used in training.
+        beta_schedule: Noise schedule of the DDIM scheduler (diffusers names).
+        num_inference_steps: DDIM steps at inference (the paper: 4).
+        final_action_step: After the DDIM steps, run one more pass and take its action-space prediction as
+            the final, precise action (variants A and AI).
+        per_horizon_action_normalization: Normalise each horizon step's 6-D action with its own min/max
+            instead of all steps jointly.
+        stats_num_samples: Number of dataset samples used to estimate the action and image-space target
+            statistics when training from scratch.
+        min_visible_points: Fewer visible rendered points than this (over all cameras) for a step makes the
+            image-space update fall back to the action-space one.
+        point_update: How the rendered points move at each step before the SVD: "ddim" applies the paper's
+            DDIM equation to the camera-frame points; "interpolate" moves them towards the predicted clean
+            points by the same fraction without DDIM's rescaling about the camera centre.
+        image_loss_weight, action_loss_weight, gripper_loss_weight: Weights of the three loss terms
+            (L1 image-space displacement, L1 action-space update, BCE gripper).
+        inference_compile: Compile the denoising loop with `torch.compile` (CUDA graphs on GPU) for fast
+            inference. Same actions as eager up to floating-point error.
+        optimizer_*, scheduler_warmup_steps: Training preset (the paper: AdamW, lr 1e-4, weight decay 1e-2,
+            cosine schedule).
+    """
+
+    # Input / output structure.
+    n_obs_steps: int = 2
+    chunk_size: int = 8
+    n_action_steps: int = 8
+
+    normalization_mapping: dict[str, NormalizationMode] = field(
+        default_factory=lambda: {
+            "VISUAL": NormalizationMode.IDENTITY,
+            "STATE": NormalizationMode.IDENTITY,
+            "ACTION": NormalizationMode.IDENTITY,
+        }
+    )
+
+    variant: str = "AI"
+
+    # Embodiment (calibration, meshes, end-effector pose, action adapter).
+    embodiment: str | None = None
+    cameras: dict[str, Any] = field(default_factory=dict)
+    ee_pose: dict[str, Any] = field(default_factory=dict)
+    action_adapter: dict[str, Any] = field(default_factory=dict)
+    mesh_shapes: dict[str, Any] = field(default_factory=dict)
+
+    # Rendering.
+    image_size: tuple[int, int] = (128, 128)
+    render_texture: bool = True
+    texture_colors: tuple[tuple[float, float, float], tuple[float, float, float]] = (
+        (1.0, 0.1, 0.1),
+        (0.1, 0.3, 1.0),
+    )
+    untextured_color: tuple[float, float, float] = (0.6, 0.6, 0.6)
+    render_history: bool = True
+    use_point_map_input: bool = True
+    point_map_scale: float = 1.0
+
+    # Architecture (paper defaults).
+    dim_model: int = 1024
+    n_layers: int = 8
+    n_heads: int = 16
+    mlp_ratio: float = 4.0
+    patch_size: int = 16
+    dropout: float = 0.0
+
+    # Diffusion.
+    num_train_timesteps: int = 50
+    beta_schedule: str = "squaredcos_cap_v2"
+    num_inference_steps: int = 4
+    final_action_step: bool = True
+    per_horizon_action_normalization: bool = False
+    stats_num_samples: int = 512
+    min_visible_points: int = 3
+    point_update: str = "ddim"
+
+    # Loss.
+    image_loss_weight: float = 1.0
+    action_loss_weight: float = 1.0
+    gripper_loss_weight: float = 1.0
+
+    # Inference speed.
+    inference_compile: bool = False
+
+    # Training preset.
+    optimizer_lr: float = 1e-4
+    optimizer_betas: tuple[float, float] = (0.9, 0.999)
+    optimizer_eps: float = 1e-8
+    optimizer_weight_decay: float = 1e-2
+    scheduler_name: str = "cosine"
+    scheduler_warmup_steps: int = 500
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.variant not in RND_VARIANTS:
+            raise ValueError(f"`variant` must be one of {RND_VARIANTS}. Got {self.variant!r}.")
+        for name in ("n_obs_steps", "chunk_size", "n_action_steps", "num_train_timesteps", "n_layers"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"`{name}` must be >= 1. Got {getattr(self, name)}.")
+        if self.n_action_steps > self.chunk_size:
+            raise ValueError(
+                f"`n_action_steps` ({self.n_action_steps}) must be <= `chunk_size` ({self.chunk_size}): the "
+                "policy can only execute steps it predicted."
+            )
+        if not 1 <= self.num_inference_steps <= self.num_train_timesteps:
+            raise ValueError(
+                f"`num_inference_steps` must be in [1, num_train_timesteps={self.num_train_timesteps}]. "
+                f"Got {self.num_inference_steps}."
+            )
+        if self.dim_model % self.n_heads != 0:
+            raise ValueError(
+                f"`dim_model` ({self.dim_model}) must be divisible by `n_heads` ({self.n_heads})."
+            )
+        if self.dim_model % 2 != 0:
+            raise ValueError(f"`dim_model` must be even (two half-width patch embeddings). Got {self.dim_model}.")
+        self.image_size = tuple(int(s) for s in self.image_size)
+        if len(self.image_size) != 2 or any(s % self.patch_size for s in self.image_size):
+            raise ValueError(
+                f"`image_size` {self.image_size} must be two sizes divisible by `patch_size` ({self.patch_size})."
+            )
+        if self.point_map_scale <= 0:
+            raise ValueError(f"`point_map_scale` must be > 0. Got {self.point_map_scale}.")
+        if self.min_visible_points < 3:
+            raise ValueError(
+                f"`min_visible_points` must be >= 3 (a rigid transform needs 3 points). "
+                f"Got {self.min_visible_points}."
+            )
+        if self.point_update not in ("ddim", "interpolate"):
+            raise ValueError(f"`point_update` must be 'ddim' or 'interpolate'. Got {self.point_update!r}.")
+        for mode_name, mode in self.normalization_mapping.items():
+            if NormalizationMode(mode) is not NormalizationMode.IDENTITY:
+                raise ValueError(
+                    f"R&D renders from metric poses and normalises its own targets: normalization_mapping must "
+                    f"be IDENTITY for every feature type, got {mode_name}={mode}."
+                )
+
+    def get_optimizer_preset(self) -> AdamWConfig:
+        return AdamWConfig(
+            lr=self.optimizer_lr,
+            betas=self.optimizer_betas,
+            eps=self.optimizer_eps,
+            weight_decay=self.optimizer_weight_decay,
+        )
+
+    def get_scheduler_preset(self) -> DiffuserSchedulerConfig:
+        return DiffuserSchedulerConfig(name=self.scheduler_name, num_warmup_steps=self.scheduler_warmup_steps)
+
+    def validate_features(self) -> None:
+        if not self.image_features:
+            raise ValueError(
+                "R&D needs at least one camera: no 'observation.images.*' feature among the inputs."
+            )
+        if self.robot_state_feature is None:
+            raise ValueError(
+                "R&D needs 'observation.state' to read the end-effector pose from; the inputs have none."
+            )
+        if self.action_feature is None:
+            raise ValueError("R&D needs an 'action' output feature.")
+
+    @property
+    def observation_delta_indices(self) -> list:
+        return list(range(1 - self.n_obs_steps, 1))
+
+    @property
+    def action_delta_indices(self) -> list:
+        return list(range(self.chunk_size))
+
+    @property
+    def reward_delta_indices(self) -> None:
+        return None

@@ -1,0 +1,269 @@
+"""Binds an embodiment (cameras, gripper meshes, end-effector pose source) to the policy's tensors.
+
+The embodiment is resolved once, when a policy is built from scratch, into plain JSON-able fields of the
+config (`cameras`, `ee_pose`, `action_adapter`, `mesh_shapes`) and mesh buffers of the model, so a saved
+checkpoint (config.json + model.safetensors) is self-contained.
+"""
+
+import logging
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import Tensor, nn
+
+from lerobot_rnd.geometry import (
+    make_transform,
+    quat_wxyz_to_matrix,
+    rotation_6d_to_matrix,
+    so3_exp,
+)
+from lerobot_rnd.rendering import MeshBatch
+
+logger = logging.getLogger(__name__)
+
+EMBODIMENT_FILE_IN_DATASET = "meta/rnd_embodiment.json"
+MESH_NAMES = ("full", "fingers")
+ROTATION_FORMATS = ("fixed", "quat_wxyz", "quat_xyzw", "rotvec", "rot6d")
+
+
+def resolve_embodiment(config, dataset_meta=None) -> dict | None:
+    """Fill `config.cameras`, `config.ee_pose`, `config.action_adapter`, `config.mesh_shapes` from the
+    embodiment source and return its meshes {"full": GripperMesh, "fingers": GripperMesh}.
+
+    Source, in order: `config.embodiment` (preset name or JSON path), then the dataset's
+    `meta/rnd_embodiment.json`. Returns None when no source is available but the config is already resolved
+    (a checkpoint being loaded: its meshes come from model.safetensors).
+    """
+    from lerobot_rnd.embodiment import Embodiment, load_embodiment
+
+    source = config.embodiment
+    if source is None and dataset_meta is not None:
+        candidate = Path(dataset_meta.root) / EMBODIMENT_FILE_IN_DATASET
+        if candidate.is_file():
+            source = str(candidate)
+            config.embodiment = source
+    embodiment: Embodiment | None = None
+    if source is not None:
+        try:
+            embodiment = load_embodiment(source)
+        except FileNotFoundError:
+            if not config.cameras:
+                raise
+            logger.info("Embodiment source %s not found; using the calibration stored in the config.", source)
+    if embodiment is None:
+        if not config.cameras or not config.mesh_shapes:
+            raise ValueError(
+                "R&D needs a camera calibration and gripper meshes but none was found: pass "
+                "--policy.embodiment=<preset name or embodiment JSON> (presets: "
+                f"{', '.join(_preset_names())}), or record the dataset with `lerobot-rnd-record`, which writes "
+                f"{EMBODIMENT_FILE_IN_DATASET}. See docs/CALIBRATION.md."
+            )
+        _validate_cameras(config)
+        return None
+
+    config.cameras = {
+        key: {**cam.to_dict(), "mesh": embodiment.camera_mesh.get(key, "full")}
+        for key, cam in embodiment.cameras.items()
+        if key in config.image_features
+    }
+    config.ee_pose = embodiment.ee_pose_dict()
+    if not config.action_adapter:
+        if embodiment.action_adapter is None:
+            raise ValueError(
+                "The embodiment names no action adapter: pass --policy.action_adapter='{\"type\": ...}' "
+                "(ee_position_delta, ee_delta, ee_absolute or joint_positions)."
+            )
+        config.action_adapter = dict(embodiment.action_adapter)
+    meshes = {name: embodiment.meshes[name] for name in MESH_NAMES if name in embodiment.meshes}
+    if "full" not in meshes:
+        raise ValueError("The embodiment has no 'full' gripper mesh.")
+    meshes.setdefault("fingers", meshes["full"])
+    # Texturing may split faces on the symmetry plane: the buffers hold the textured meshes.
+    meshes = {name: m.with_symmetry_texture(colors=config.texture_colors) for name, m in meshes.items()}
+    config.mesh_shapes = {name: [len(m.vertices), len(m.faces)] for name, m in meshes.items()}
+    _validate_cameras(config)
+    return meshes
+
+
+def _preset_names() -> list[str]:
+    from lerobot_rnd.embodiment import EMBODIMENT_PRESETS
+
+    return sorted(EMBODIMENT_PRESETS)
+
+
+def _validate_cameras(config) -> None:
+    """Every image feature has a calibration whose size matches the feature's."""
+    missing = [key for key in config.image_features if key not in config.cameras]
+    if missing:
+        raise ValueError(
+            f"No camera calibration for {missing}; calibrated cameras: {sorted(config.cameras)}. Calibrate them "
+            "in the embodiment JSON (docs/CALIBRATION.md) or rename the dataset's cameras to match."
+        )
+    for key, ft in config.image_features.items():
+        h, w = ft.shape[-2:]
+        ch, cw = config.cameras[key]["image_size"]
+        if (h, w) != (ch, cw):
+            raise ValueError(
+                f"Camera {key!r}: images are {h}x{w} but its calibration is for {ch}x{cw}. Rescale the "
+                f"calibration with CameraCalibration.resized({h}, {w}) (intrinsics scale with the image) or "
+                "record at the calibrated size."
+            )
+    for key, cam in config.cameras.items():
+        if (cam.get("T_world_cam") is None) == (cam.get("T_ee_cam") is None):
+            raise ValueError(f"Camera {key!r} needs exactly one of T_world_cam (static) or T_ee_cam (on the EE).")
+        if cam.get("mesh", "full") not in MESH_NAMES:
+            raise ValueError(f"Camera {key!r}: mesh must be one of {MESH_NAMES}, got {cam.get('mesh')!r}.")
+
+
+def scaled_intrinsics(K: np.ndarray, from_size, to_size) -> np.ndarray:
+    """Rescale K (pixel centres at integer coordinates) from image size (H, W) to (H', W')."""
+    K = np.array(K, dtype=np.float64).copy()
+    sy, sx = to_size[0] / from_size[0], to_size[1] / from_size[1]
+    K[0, 0] *= sx
+    K[1, 1] *= sy
+    K[0, 1] *= sx
+    K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
+    K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
+    return K
+
+
+class CameraRig(nn.Module):
+    """Calibration of the policy's cameras as buffers, in the order of `camera_keys`.
+
+    Buffers: K (C, 3, 3) at the network's image size, T_world_cam (C, 4, 4) for static cameras,
+    T_ee_cam (C, 4, 4) for cameras on the end effector, mounted (C,) bool, mesh_index (C,) long.
+    """
+
+    def __init__(self, config, camera_keys: list[str]):
+        super().__init__()
+        _validate_cameras(config)
+        Ks, T_wc, T_ec, mounted, mesh_index = [], [], [], [], []
+        for key in camera_keys:
+            cam = config.cameras[key]
+            Ks.append(scaled_intrinsics(cam["K"], cam["image_size"], config.image_size))
+            is_mounted = cam.get("T_ee_cam") is not None
+            mounted.append(is_mounted)
+            T_wc.append(np.eye(4) if is_mounted else np.array(cam["T_world_cam"], dtype=np.float64))
+            T_ec.append(np.array(cam["T_ee_cam"], dtype=np.float64) if is_mounted else np.eye(4))
+            mesh_index.append(MESH_NAMES.index(cam.get("mesh", "full")))
+        self.register_buffer("K", torch.tensor(np.stack(Ks), dtype=torch.float32), persistent=False)
+        self.register_buffer("T_world_cam_static", torch.tensor(np.stack(T_wc), dtype=torch.float32), persistent=False)
+        self.register_buffer("T_ee_cam", torch.tensor(np.stack(T_ec), dtype=torch.float32), persistent=False)
+        self.register_buffer("mounted", torch.tensor(mounted), persistent=False)
+        self.register_buffer("mesh_index", torch.tensor(mesh_index, dtype=torch.long), persistent=False)
+
+    def T_world_cam(self, T_world_ee: Tensor) -> Tensor:
+        """Camera poses for EE poses (..., 4, 4) -> (..., C, 4, 4); static cameras ignore the EE pose."""
+        on_ee = T_world_ee[..., None, :, :] @ self.T_ee_cam
+        static = self.T_world_cam_static.expand_as(on_ee)
+        return torch.where(self.mounted[:, None, None], on_ee, static)
+
+
+class EEPoseReader(nn.Module):
+    """Reads the end-effector pose and gripper state from `observation.state`.
+
+    Spec (config.ee_pose): {"position_indices": [i, j, k], "rotation": one of ROTATION_FORMATS,
+    "rotation_indices": [...] (unless "fixed"), "fixed_rotation": 3x3 R_world_ee (for "fixed"),
+    "gripper_index": int or None, "T_flange_ee": optional 4x4 applied on the right}.
+    """
+
+    def __init__(self, spec: dict, state_dim: int):
+        super().__init__()
+        if not spec:
+            raise ValueError("config.ee_pose is empty: the embodiment must say where the EE pose is in the state.")
+        self.position_indices = [int(i) for i in spec["position_indices"]]
+        self.rotation = spec.get("rotation", "fixed")
+        if self.rotation not in ROTATION_FORMATS:
+            raise ValueError(f"ee_pose.rotation must be one of {ROTATION_FORMATS}, got {self.rotation!r}.")
+        self.rotation_indices = [int(i) for i in spec.get("rotation_indices") or []]
+        expected = {"fixed": 0, "quat_wxyz": 4, "quat_xyzw": 4, "rotvec": 3, "rot6d": 6}[self.rotation]
+        if len(self.rotation_indices) != expected or len(self.position_indices) != 3:
+            raise ValueError(
+                f"ee_pose: {self.rotation} needs 3 position and {expected} rotation indices, got "
+                f"{self.position_indices} and {self.rotation_indices}."
+            )
+        self.gripper_index = spec.get("gripper_index")
+        used = self.position_indices + self.rotation_indices + ([self.gripper_index] if self.gripper_index is not None else [])
+        if max(used) >= state_dim:
+            raise ValueError(
+                f"ee_pose reads state index {max(used)} but observation.state has {state_dim} values: the "
+                "embodiment does not match this dataset."
+            )
+        fixed = spec.get("fixed_rotation") or np.eye(3).tolist()
+        self.register_buffer("fixed_rotation", torch.tensor(fixed, dtype=torch.float32), persistent=False)
+        T_flange_ee = spec.get("T_flange_ee") or np.eye(4).tolist()
+        self.register_buffer("T_flange_ee", torch.tensor(T_flange_ee, dtype=torch.float32), persistent=False)
+
+    def pose(self, state: Tensor) -> Tensor:
+        """state (..., D) -> T_world_ee (..., 4, 4)."""
+        state = state.float()
+        pos = state[..., self.position_indices]
+        if self.rotation == "fixed":
+            rot = self.fixed_rotation.expand(*state.shape[:-1], 3, 3)
+        else:
+            r = state[..., self.rotation_indices]
+            if self.rotation == "quat_wxyz":
+                rot = quat_wxyz_to_matrix(r)
+            elif self.rotation == "quat_xyzw":
+                rot = quat_wxyz_to_matrix(torch.cat([r[..., 3:], r[..., :3]], dim=-1))
+            elif self.rotation == "rotvec":
+                rot = so3_exp(r)
+            else:
+                rot = rotation_6d_to_matrix(r)
+        return make_transform(rot, pos) @ self.T_flange_ee
+
+    def gripper(self, state: Tensor) -> Tensor:
+        """state (..., D) -> raw gripper state (...); zeros if the state has none."""
+        if self.gripper_index is None:
+            return state.new_zeros(state.shape[:-1]).float()
+        return state[..., self.gripper_index].float()
+
+
+class MeshBuffers(nn.Module):
+    """The gripper meshes ("full", "fingers") as buffers saved in model.safetensors.
+
+    Built from the embodiment when training from scratch; allocated empty from `config.mesh_shapes` and
+    filled by the state dict when a checkpoint is loaded.
+    """
+
+    def __init__(self, config, meshes: dict | None):
+        super().__init__()
+        self.texture_colors = config.texture_colors
+        self.untextured_color = config.untextured_color
+        shapes = config.mesh_shapes
+        n_v = max(int(shapes[name][0]) for name in MESH_NAMES)
+        n_f = max(int(shapes[name][1]) for name in MESH_NAMES)
+        vertices = torch.zeros(len(MESH_NAMES), n_v, 3)
+        faces = torch.zeros(len(MESH_NAMES), n_f, 3, dtype=torch.long)
+        face_valid = torch.zeros(len(MESH_NAMES), n_f, dtype=torch.bool)
+        colors = torch.zeros(len(MESH_NAMES), n_v, 3)
+        plain = torch.zeros(len(MESH_NAMES), n_v, 3)
+        loaded = torch.tensor(meshes is not None)
+        if meshes is not None:
+            for i, name in enumerate(MESH_NAMES):
+                textured = meshes[name]  # already textured by `resolve_embodiment`
+                v, f = len(textured.vertices), len(textured.faces)
+                vertices[i, :v] = torch.as_tensor(textured.vertices, dtype=torch.float32)
+                faces[i, :f] = torch.as_tensor(textured.faces, dtype=torch.long)
+                face_valid[i, :f] = True
+                colors[i, :v] = torch.as_tensor(textured.vertex_colors, dtype=torch.float32)
+                plain[i, :v] = torch.tensor(config.untextured_color, dtype=torch.float32)
+        self.register_buffer("vertices", vertices)
+        self.register_buffer("faces", faces)
+        self.register_buffer("face_valid", face_valid)
+        self.register_buffer("colors_textured", colors)
+        self.register_buffer("colors_plain", plain)
+        self.register_buffer("loaded", loaded)
+        self._batches: dict = {}
+
+    def check_loaded(self) -> None:
+        if not bool(self.loaded):
+            raise RuntimeError(
+                "The gripper meshes were never loaded: this policy was built without an embodiment and no "
+                "checkpoint weights were loaded into it. Load it with RnDPolicy.from_pretrained(...)."
+            )
+
+    def mesh_batch(self, textured: bool) -> MeshBatch:
+        colors = self.colors_textured if textured else self.colors_plain
+        return MeshBatch(vertices=self.vertices, faces=self.faces, face_valid=self.face_valid, vertex_colors=colors)

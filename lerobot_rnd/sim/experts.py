@@ -1,0 +1,57 @@
+"""Scripted experts: MetaWorld's per-task heuristic policies behind a small common interface."""
+
+from __future__ import annotations
+
+import json
+from importlib.util import find_spec
+from pathlib import Path
+
+import numpy as np
+
+
+def metaworld_policy_class_name(task: str) -> str:
+    """Name of MetaWorld's scripted policy class for a V3 task ("reach-v3" -> "SawyerReachV3Policy")."""
+    spec = find_spec("lerobot")
+    if spec is not None and spec.submodule_search_locations:
+        cfg = Path(list(spec.submodule_search_locations)[0]) / "envs" / "metaworld_config.json"
+        if cfg.exists():
+            mapping = json.loads(cfg.read_text()).get("TASK_POLICY_MAPPING", {})
+            if task in mapping:
+                return mapping[task]
+    base, _, version = task.rpartition("-")
+    special = {"peg-insert-side": "PegInsertionSide"}
+    camel = special.get(base) or "".join(p.capitalize() for p in base.split("-"))
+    return f"Sawyer{camel}{version.upper()}Policy"
+
+
+class MetaWorldExpert:
+    """MetaWorld scripted policy acting on the raw 39-D MetaWorld observation.
+
+    ``expert(raw_obs) -> action (4,) float32`` in [-1, 1]; ``noise_std`` adds Gaussian noise to the
+    xyz part (seeded by ``seed``) for more diverse demonstrations.
+    """
+
+    def __init__(self, task: str, noise_std: float = 0.0, seed: int | None = None):
+        import metaworld.policies as policies
+
+        name = metaworld_policy_class_name(task)
+        if not hasattr(policies, name):
+            raise ValueError(f"MetaWorld has no scripted policy '{name}' for task '{task}'")
+        self.task = task
+        self.policy = getattr(policies, name)()
+        self.noise_std = float(noise_std)
+        self.rng = np.random.default_rng(seed)
+
+    def __call__(self, raw_obs: np.ndarray) -> np.ndarray:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # "Constant(s) may be too high" from MetaWorld's policies
+            a = np.asarray(self.policy.get_action(raw_obs), dtype=np.float64)
+        if self.noise_std > 0:
+            a[:3] = a[:3] + self.rng.normal(0.0, self.noise_std, size=3)
+        return np.clip(a, -1.0, 1.0).astype(np.float32)
+
+    def act(self, env) -> np.ndarray:
+        """Action for a :class:`~lerobot_rnd.sim.metaworld_env.RnDMetaWorldEnv` (reads its raw observation)."""
+        return self(env.unwrapped.raw_observation)

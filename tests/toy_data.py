@@ -1,0 +1,132 @@
+"""A tiny synthetic reaching task recorded as a LeRobot dataset, for fast end-to-end tests.
+
+A two-finger box gripper (fixed orientation, tilted) moves towards a target in steps of at most 1 cm
+(MetaWorld-style actions: xyz deltas / 0.01 m plus a gripper value). A static camera and a camera on the
+end effector see a grey table, a red target blob and the gripper, drawn by plain NumPy projection of the
+target (not by the renderer under test).
+"""
+
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from lerobot_rnd.embodiment import CameraCalibration, EEPoseSource, Embodiment, GripperMesh
+
+IMAGE_SIZE = (64, 64)
+FPS = 10
+R_WORLD_EE = Rotation.from_euler("xyz", [180, 0, 20], degrees=True).as_matrix()  # pointing down, yawed
+
+
+def toy_gripper() -> GripperMesh:
+    palm = trimesh.creation.box(extents=(0.02, 0.08, 0.02))
+    palm.apply_translation((0, 0, -0.04))
+    left = trimesh.creation.box(extents=(0.015, 0.012, 0.05))
+    left.apply_translation((0, 0.03, 0.0))
+    right = trimesh.creation.box(extents=(0.015, 0.012, 0.05))
+    right.apply_translation((0, -0.03, 0.0))
+    return GripperMesh.from_trimesh(trimesh.util.concatenate([palm, left, right]), color=(0.7, 0.7, 0.7))
+
+
+def toy_fingers() -> GripperMesh:
+    left = trimesh.creation.box(extents=(0.015, 0.012, 0.05))
+    left.apply_translation((0, 0.03, 0.0))
+    right = trimesh.creation.box(extents=(0.015, 0.012, 0.05))
+    right.apply_translation((0, -0.03, 0.0))
+    return GripperMesh.from_trimesh(trimesh.util.concatenate([left, right]), color=(0.7, 0.7, 0.7))
+
+
+def look_at(eye, target, up=(0, 0, 1)) -> np.ndarray:
+    """T_world_cam of an OpenCV camera at `eye` looking at `target`."""
+    eye, target, up = (np.asarray(v, dtype=np.float64) for v in (eye, target, up))
+    z = target - eye
+    z /= np.linalg.norm(z)
+    x = np.cross(z, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    T = np.eye(4)
+    T[:3, :3] = np.stack([x, y, z], axis=1)
+    T[:3, 3] = eye
+    return T
+
+
+def toy_embodiment(image_size=IMAGE_SIZE) -> Embodiment:
+    h, w = image_size
+    f = 0.9 * w
+    K = [[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]]
+    T_ee_cam = np.eye(4)
+    T_ee_cam[:3, 3] = (0.0, 0.0, -0.12)  # behind the palm, looking along the EE z axis (down)
+    return Embodiment(
+        cameras={
+            "observation.images.front": CameraCalibration(
+                "front", K, image_size, T_world_cam=look_at((0.55, 0.0, 0.45), (0.0, 0.0, 0.05))
+            ),
+            "observation.images.wrist": CameraCalibration("wrist", K, image_size, T_ee_cam=T_ee_cam),
+        },
+        meshes={"full": toy_gripper(), "fingers": toy_fingers()},
+        camera_mesh={"observation.images.front": "full", "observation.images.wrist": "fingers"},
+        ee_pose_source=EEPoseSource(
+            format="none", position_indices=[0, 1, 2], fixed_rotation=R_WORLD_EE, gripper_index=3,
+            gripper_open_value=1.0, gripper_closed_value=-1.0,
+        ),
+        action_adapter={"type": "ee_position_delta", "scale": 0.01},
+        name="toy",
+    )
+
+
+def _draw(embodiment: Embodiment, ee_pos: np.ndarray, target: np.ndarray) -> dict[str, np.ndarray]:
+    """uint8 images (H, W, 3) per camera key: table colour, target blob, gripper centre blob."""
+    T_world_ee = np.eye(4)
+    T_world_ee[:3, :3] = R_WORLD_EE
+    T_world_ee[:3, 3] = ee_pos
+    out = {}
+    for key, cam in embodiment.cameras.items():
+        h, w = cam.image_size
+        T_world_cam = cam.T_world_cam if cam.is_static else T_world_ee @ cam.T_ee_cam
+        img = np.full((h, w, 3), (90, 110, 90), dtype=np.uint8)
+        vv, uu = np.mgrid[0:h, 0:w]
+        for point, colour, radius in ((target, (220, 30, 30), 3.0), (ee_pos, (30, 30, 220), 2.0)):
+            p_cam = np.linalg.inv(T_world_cam) @ np.append(point, 1.0)
+            if p_cam[2] <= 1e-3:
+                continue
+            u, v = (cam.K @ (p_cam[:3] / p_cam[2]))[:2]
+            img[(uu - u) ** 2 + (vv - v) ** 2 <= radius**2] = colour
+        out[key] = img
+    return out
+
+
+def record_toy_dataset(root: Path, n_episodes: int = 3, episode_len: int = 16, seed: int = 0,
+                       repo_id: str = "local/toy_reach"):
+    """Write a LeRobot v3 dataset with PNG images plus meta/rnd_embodiment.json; returns its root."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    embodiment = toy_embodiment()
+    h, w = IMAGE_SIZE
+    features = {
+        **{
+            key: {"dtype": "image", "shape": (h, w, 3), "names": ["height", "width", "channels"]}
+            for key in embodiment.cameras
+        },
+        "observation.state": {"dtype": "float32", "shape": (4,), "names": ["x", "y", "z", "gripper"]},
+        "action": {"dtype": "float32", "shape": (4,), "names": ["dx", "dy", "dz", "gripper"]},
+    }
+    ds = LeRobotDataset.create(repo_id, fps=FPS, features=features, root=root, use_videos=False)
+    rng = np.random.default_rng(seed)
+    for _ in range(n_episodes):
+        ee = np.array([0.0, 0.0, 0.2]) + rng.uniform(-0.05, 0.05, 3)
+        target = np.array([rng.uniform(-0.08, 0.08), rng.uniform(-0.08, 0.08), 0.06])
+        for t in range(episode_len):
+            delta = np.clip((target - ee) / 0.01, -1, 1) * 0.8
+            grip = 1.0 if t >= episode_len // 2 else -1.0
+            images = _draw(embodiment, ee, target)
+            frame = {key: img for key, img in images.items()}
+            frame["observation.state"] = np.append(ee, -grip).astype(np.float32)
+            frame["action"] = np.append(delta, grip).astype(np.float32)
+            frame["task"] = "reach the red target"
+            ds.add_frame(frame)
+            ee = ee + delta * 0.01
+        ds.save_episode()
+    ds.finalize()
+    embodiment.save_json(Path(root) / "meta" / "rnd_embodiment.json")
+    return Path(root)
