@@ -56,7 +56,9 @@ def _as_matrix(x: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
 
 def _check_rigid(T: np.ndarray, what: str) -> None:
     if not np.allclose(T[3], [0.0, 0.0, 0.0, 1.0], atol=1e-6):
-        raise ValueError(f"{what} must be a rigid 4x4 transform with last row [0, 0, 0, 1], got {T[3].tolist()}")
+        raise ValueError(
+            f"{what} must be a rigid 4x4 transform with last row [0, 0, 0, 1], got {T[3].tolist()}"
+        )
     R = T[:3, :3]
     err = np.abs(R.T @ R - np.eye(3)).max()
     if err > _RIGID_TOL:
@@ -123,11 +125,13 @@ class CameraCalibration:
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
-            raise ValueError(f"camera name must be a string, got {self.name!r}")
+            raise TypeError(f"camera name must be a string, got {self.name!r}")
         self.K = _as_matrix(self.K, (3, 3), f"camera '{self.name}': K")
         K = self.K
         if not (K[0, 0] > 0 and K[1, 1] > 0):
-            raise ValueError(f"camera '{self.name}': K must have positive focal lengths, got fx={K[0, 0]}, fy={K[1, 1]}")
+            raise ValueError(
+                f"camera '{self.name}': K must have positive focal lengths, got fx={K[0, 0]}, fy={K[1, 1]}"
+            )
         if abs(K[1, 0]) > 1e-9 or not np.allclose(K[2], [0.0, 0.0, 1.0], atol=1e-9):
             raise ValueError(
                 f"camera '{self.name}': K must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]], got {K.tolist()}"
@@ -135,9 +139,13 @@ class CameraCalibration:
         try:
             H, W = (int(v) for v in self.image_size)
         except (TypeError, ValueError) as e:
-            raise ValueError(f"camera '{self.name}': image_size must be (H, W), got {self.image_size!r}") from e
+            raise ValueError(
+                f"camera '{self.name}': image_size must be (H, W), got {self.image_size!r}"
+            ) from e
         if len(tuple(self.image_size)) != 2 or H <= 0 or W <= 0:
-            raise ValueError(f"camera '{self.name}': image_size must be two positive ints (H, W), got {self.image_size!r}")
+            raise ValueError(
+                f"camera '{self.name}': image_size must be two positive ints (H, W), got {self.image_size!r}"
+            )
         self.image_size = (H, W)
         if (self.T_world_cam is None) == (self.T_ee_cam is None):
             raise ValueError(
@@ -267,7 +275,8 @@ class CameraCalibration:
         """Pixel coordinates (u, v) (..., N, 2) and depth (..., N) of world points (..., N, 3)."""
         p = torch.as_tensor(points_world, dtype=torch.float64)
         T_wc = self.T_world_cam_at(
-            None if T_world_ee is None else torch.as_tensor(T_world_ee, dtype=torch.float64), dtype=torch.float64
+            None if T_world_ee is None else torch.as_tensor(T_world_ee, dtype=torch.float64),
+            dtype=torch.float64,
         )
         R, t = T_wc[..., :3, :3], T_wc[..., :3, 3]
         p_cam = torch.einsum("...ji,...nj->...ni", R, p - t.unsqueeze(-2))  # R^T (p - t)
@@ -307,7 +316,9 @@ def camera_from_mujoco(
         names = [model.camera(i).name for i in range(model.ncam)]
         raise ValueError(f"MuJoCo model has no camera '{cam_name}'; cameras: {names}")
     if hasattr(model, "cam_sensorsize") and np.any(np.asarray(model.cam_sensorsize[cid]) > 0):
-        raise ValueError(f"camera '{cam_name}' uses sensorsize/focal intrinsics: only fovy cameras are supported")
+        raise ValueError(
+            f"camera '{cam_name}' uses sensorsize/focal intrinsics: only fovy cameras are supported"
+        )
     fovy = math.radians(float(model.cam_fovy[cid]))
     fy = 0.5 * H / math.tan(0.5 * fovy)
     K = np.array([[fy, 0.0, (W - 1) / 2.0], [0.0, fy, (H - 1) / 2.0], [0.0, 0.0, 1.0]])
@@ -329,7 +340,9 @@ def camera_from_mujoco(
                 raise ValueError(f"MuJoCo model has no site '{mounted_on_site}'")
             T_world_ee = _pose(np.asarray(data.site_xmat[sid]).reshape(3, 3), np.asarray(data.site_xpos[sid]))
         if mode == int(mujoco.mjtCamLight.mjCAMLIGHT_FIXED):
-            cam = CameraCalibration(name or cam_name, K, (H, W), T_ee_cam=_inv_rigid(T_world_ee) @ T_world_cam)
+            cam = CameraCalibration(
+                name or cam_name, K, (H, W), T_ee_cam=_inv_rigid(T_world_ee) @ T_world_cam
+            )
         elif mode == int(mujoco.mjtCamLight.mjCAMLIGHT_TRACK):
             T_off = T_world_cam.copy()
             T_off[:3, 3] -= T_world_ee[:3, 3]
@@ -480,11 +493,11 @@ class GripperMesh:
 
     @property
     def num_vertices(self) -> int:
-        return int(len(self.vertices))
+        return len(self.vertices)
 
     @property
     def num_faces(self) -> int:
-        return int(len(self.faces))
+        return len(self.faces)
 
     def bounds(self) -> np.ndarray:
         return np.stack([self.vertices.min(0), self.vertices.max(0)])
@@ -620,7 +633,7 @@ class GripperMesh:
             changed = True
             while changed:
                 changed = False
-                for b in list(bodies):
+                for b in bodies:
                     if int(model.body_parentid[b]) in excluded and b not in excluded:
                         excluded.add(b)
                         changed = True
@@ -633,13 +646,17 @@ class GripperMesh:
             sid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SITE, ee_site)
             if sid < 0:
                 raise ValueError(f"MuJoCo model has no site '{ee_site}'")
-            T_ee_world = _inv_rigid(_pose(np.asarray(data.site_xmat[sid]).reshape(3, 3), np.asarray(data.site_xpos[sid])))
+            T_ee_world = _inv_rigid(
+                _pose(np.asarray(data.site_xmat[sid]).reshape(3, 3), np.asarray(data.site_xpos[sid]))
+            )
         else:
             eb = body_name if ee_body is None else ee_body
             eid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, eb)
             if eid < 0:
                 raise ValueError(f"MuJoCo model has no body '{eb}'")
-            T_ee_world = _inv_rigid(_pose(np.asarray(data.xmat[eid]).reshape(3, 3), np.asarray(data.xpos[eid])))
+            T_ee_world = _inv_rigid(
+                _pose(np.asarray(data.xmat[eid]).reshape(3, 3), np.asarray(data.xpos[eid]))
+            )
 
         groups = (0, 1, 2) if geom_group is None else tuple(int(g) for g in geom_group)
         type_names = {
@@ -728,8 +745,7 @@ class GripperMesh:
         def resolve(fname: str) -> Path:
             fn = fname
             for prefix in ("package://", "file://"):
-                if fn.startswith(prefix):
-                    fn = fn[len(prefix) :]
+                fn = fn.removeprefix(prefix)
             cand = [Path(fn)] if Path(fn).is_absolute() else []
             parts = Path(fn).parts
             for base in search:
@@ -772,7 +788,7 @@ class GripperMesh:
         return cls.concatenate(meshes, name)
 
     # ------------------------------------------------------------------ processing
-    def simplified(self, max_faces: int, method: str = "auto", keep_small_parts: int = 64) -> GripperMesh:
+    def simplified(self, max_faces: int, method: str = "auto", keep_small_parts: int = 256) -> GripperMesh:
         """A copy with at most ``max_faces`` faces.
 
         Connected parts with at most ``keep_small_parts`` faces (boxes, fingers pads...) are kept
@@ -858,7 +874,9 @@ class GripperMesh:
         return cls(
             np.asarray(d["vertices"], dtype=np.float32).reshape(-1, 3),
             np.asarray(d["faces"], dtype=np.int64).reshape(-1, 3),
-            None if d.get("vertex_colors") is None else np.asarray(d["vertex_colors"], np.float32).reshape(-1, 3),
+            None
+            if d.get("vertex_colors") is None
+            else np.asarray(d["vertex_colors"], np.float32).reshape(-1, 3),
             d.get("name", ""),
         )
 
@@ -1013,7 +1031,11 @@ class EEPoseSource:
         self._chain = None
 
     def used_indices(self) -> list[int]:
-        idx = list(self.position_indices or []) + list(self.rotation_indices or []) + list(self.joint_indices or [])
+        idx = (
+            list(self.position_indices or [])
+            + list(self.rotation_indices or [])
+            + list(self.joint_indices or [])
+        )
         if self.gripper_index is not None:
             idx.append(self.gripper_index)
         return idx
@@ -1024,7 +1046,14 @@ class EEPoseSource:
 
     def to_dict(self) -> dict[str, Any]:
         d: dict[str, Any] = {"format": self.format, "state_key": self.state_key}
-        for k in ("position_indices", "rotation_indices", "urdf_path", "ee_link", "joint_indices", "gripper_index"):
+        for k in (
+            "position_indices",
+            "rotation_indices",
+            "urdf_path",
+            "ee_link",
+            "joint_indices",
+            "gripper_index",
+        ):
             if getattr(self, k) is not None:
                 d[k] = getattr(self, k)
         for k in ("fixed_rotation", "T_world_base", "T_link_ee"):
@@ -1052,8 +1081,10 @@ class EEPoseSource:
 
         fmt = self.format
         if fmt == "none":
-            R = torch.eye(3, dtype=state.dtype, device=state.device) if self.fixed_rotation is None else (
-                torch.as_tensor(self.fixed_rotation, dtype=state.dtype, device=state.device)
+            R = (
+                torch.eye(3, dtype=state.dtype, device=state.device)
+                if self.fixed_rotation is None
+                else (torch.as_tensor(self.fixed_rotation, dtype=state.dtype, device=state.device))
             )
             return R.expand(*state.shape[:-1], 3, 3)
         r = state[..., self.rotation_indices]
@@ -1095,7 +1126,9 @@ class EEPoseSource:
         if self.gripper_index is None:
             return None
         g = torch.as_tensor(state)[..., self.gripper_index]
-        return ((g - self.gripper_open_value) / (self.gripper_closed_value - self.gripper_open_value)).clamp(0, 1)
+        return ((g - self.gripper_open_value) / (self.gripper_closed_value - self.gripper_open_value)).clamp(
+            0, 1
+        )
 
     def _fk(self, state: torch.Tensor) -> torch.Tensor:
         import pytorch_kinematics as pk
@@ -1183,17 +1216,19 @@ class Embodiment:
             raise ValueError("an embodiment needs at least one gripper mesh")
         for k, c in self.cameras.items():
             if not isinstance(c, CameraCalibration):
-                raise ValueError(f"cameras['{k}'] must be a CameraCalibration, got {type(c).__name__}")
+                raise TypeError(f"cameras['{k}'] must be a CameraCalibration, got {type(c).__name__}")
         for k, m in self.meshes.items():
             if not isinstance(m, GripperMesh):
-                raise ValueError(f"meshes['{k}'] must be a GripperMesh, got {type(m).__name__}")
+                raise TypeError(f"meshes['{k}'] must be a GripperMesh, got {type(m).__name__}")
         self.camera_mesh = dict(self.camera_mesh)
         default_mesh = "full" if "full" in self.meshes else next(iter(self.meshes))
         for k in self.cameras:
             self.camera_mesh.setdefault(k, default_mesh)
         for k, mname in self.camera_mesh.items():
             if k not in self.cameras:
-                raise ValueError(f"camera_mesh names camera '{k}', which has no calibration; cameras: {list(self.cameras)}")
+                raise ValueError(
+                    f"camera_mesh names camera '{k}', which has no calibration; cameras: {list(self.cameras)}"
+                )
             if mname not in self.meshes:
                 raise ValueError(f"camera_mesh['{k}'] = '{mname}' is not a mesh; meshes: {list(self.meshes)}")
 
@@ -1227,11 +1262,11 @@ class Embodiment:
         return self._replace(cameras=cams)
 
     def _replace(self, **changes) -> Embodiment:
-        kw = dict(
-            cameras=dict(self.cameras), meshes=dict(self.meshes), camera_mesh=dict(self.camera_mesh),
-            ee_pose_source=self.ee_pose_source, action_adapter=self.action_adapter,
-            symmetry_axis=self.symmetry_axis, name=self.name, notes=self.notes,
-        )  # fmt: skip
+        kw = {
+            "cameras": dict(self.cameras), "meshes": dict(self.meshes), "camera_mesh": dict(self.camera_mesh),
+            "ee_pose_source": self.ee_pose_source, "action_adapter": self.action_adapter,
+            "symmetry_axis": self.symmetry_axis, "name": self.name, "notes": self.notes,
+        }  # fmt: skip
         kw.update(changes)
         return Embodiment(**kw)
 
@@ -1240,7 +1275,8 @@ class Embodiment:
         if missing:
             raise ValueError(f"unknown camera keys {missing}; cameras: {list(self.cameras)}")
         return self._replace(
-            cameras={k: self.cameras[k] for k in camera_keys}, camera_mesh={k: self.camera_mesh[k] for k in camera_keys}
+            cameras={k: self.cameras[k] for k in camera_keys},
+            camera_mesh={k: self.camera_mesh[k] for k in camera_keys},
         )
 
     def textured(self, colors: Sequence[Sequence[float]] = ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0))) -> Embodiment:
@@ -1287,9 +1323,13 @@ class Embodiment:
     def from_dict(cls, d: Mapping[str, Any]) -> Embodiment:
         fmt = d.get("format", EMBODIMENT_FORMAT)
         if fmt != EMBODIMENT_FORMAT:
-            raise ValueError(f"not an embodiment description (format={fmt!r}, expected {EMBODIMENT_FORMAT!r})")
+            raise ValueError(
+                f"not an embodiment description (format={fmt!r}, expected {EMBODIMENT_FORMAT!r})"
+            )
         if int(d.get("version", EMBODIMENT_VERSION)) > EMBODIMENT_VERSION:
-            raise ValueError(f"embodiment version {d.get('version')} is newer than supported ({EMBODIMENT_VERSION})")
+            raise ValueError(
+                f"embodiment version {d.get('version')} is newer than supported ({EMBODIMENT_VERSION})"
+            )
         for req in ("cameras", "meshes"):
             if req not in d:
                 raise ValueError(f"embodiment description has no '{req}'")
@@ -1297,7 +1337,9 @@ class Embodiment:
             cameras={k: CameraCalibration.from_dict(c) for k, c in d["cameras"].items()},
             meshes={k: GripperMesh.from_dict(m) for k, m in d["meshes"].items()},
             camera_mesh=dict(d.get("camera_mesh", {})),
-            ee_pose_source=EEPoseSource.from_dict(d.get("ee_pose_source", {"format": "none", "position_indices": [0, 1, 2]})),
+            ee_pose_source=EEPoseSource.from_dict(
+                d.get("ee_pose_source", {"format": "none", "position_indices": [0, 1, 2]})
+            ),
             action_adapter=d.get("action_adapter"),
             symmetry_axis=int(d.get("symmetry_axis", 1)),
             name=d.get("name", ""),
@@ -1377,7 +1419,7 @@ def metaworld_xml_path(task: str = "reach-v3") -> str:
     spec = importlib.util.find_spec("metaworld")
     if spec is None or not spec.submodule_search_locations:
         raise ImportError("metaworld is not installed (pip install 'lerobot[metaworld]')")
-    root = Path(list(spec.submodule_search_locations)[0]) / "assets" / "sawyer_xyz"
+    root = Path(next(iter(spec.submodule_search_locations))) / "assets" / "sawyer_xyz"
     name = "sawyer_" + task.replace("-", "_") + ".xml"
     path = root / name
     if not path.exists():
@@ -1385,9 +1427,7 @@ def metaworld_xml_path(task: str = "reach-v3") -> str:
     return str(path)
 
 
-def sawyer_gripper_meshes(
-    model=None, max_faces: int = 1500, texture: bool = False
-) -> dict[str, GripperMesh]:
+def sawyer_gripper_meshes(model=None, max_faces: int = 1500, texture: bool = False) -> dict[str, GripperMesh]:
     """MetaWorld Sawyer gripper meshes in the "hand" frame at the open gripper (qpos0).
 
     "full": body "right_hand" subtree (gripper base mesh, black flange cylinder, rail, finger pads);
@@ -1428,7 +1468,10 @@ def metaworld_ee_pose_source(state_layout: str = "pos_grip_quat") -> EEPoseSourc
         )
     if state_layout == "pos_grip":
         return EEPoseSource(
-            format="none", position_indices=[0, 1, 2], fixed_rotation=list(SAWYER_HAND_QUAT_WXYZ), gripper_index=3
+            format="none",
+            position_indices=[0, 1, 2],
+            fixed_rotation=list(SAWYER_HAND_QUAT_WXYZ),
+            gripper_index=3,
         )
     raise ValueError(f"unknown MetaWorld state layout {state_layout!r} (pos_grip_quat | pos_grip)")
 
@@ -1496,7 +1539,9 @@ def metaworld_sawyer_embodiment(
 
     model = mujoco.MjModel.from_xml_path(metaworld_xml_path())
     if corner2_pos is not None:
-        model.cam_pos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "corner2")] = np.asarray(corner2_pos)
+        model.cam_pos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "corner2")] = np.asarray(
+            corner2_pos
+        )
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
     cams = sawyer_cameras_from_mujoco(model, data, camera_names, image_size, flipped, camera_keys)
@@ -1528,7 +1573,11 @@ EMBODIMENT_PRESETS: dict[str, Any] = {
     "metaworld_sawyer": lambda: metaworld_sawyer_embodiment(),
     # LeRobot's own --env.type=metaworld (corner2 480x480 turned by 180 degrees, 4-D state)
     "metaworld_sawyer_lerobot": lambda: metaworld_sawyer_embodiment(
-        ("corner2",), (480, 480), flipped=True, state_layout="pos_grip", camera_keys={"corner2": "observation.image"}
+        ("corner2",),
+        (480, 480),
+        flipped=True,
+        state_layout="pos_grip",
+        camera_keys={"corner2": "observation.image"},
     ),
 }
 

@@ -12,19 +12,12 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
-from lerobot_rnd.geometry import (
-    make_transform,
-    quat_wxyz_to_matrix,
-    rotation_6d_to_matrix,
-    so3_exp,
-)
 from lerobot_rnd.rendering import MeshBatch
 
 logger = logging.getLogger(__name__)
 
 EMBODIMENT_FILE_IN_DATASET = "meta/rnd_embodiment.json"
 MESH_NAMES = ("full", "fingers")
-ROTATION_FORMATS = ("fixed", "quat_wxyz", "quat_xyzw", "rotvec", "rot6d")
 
 
 def resolve_embodiment(config, dataset_meta=None) -> dict | None:
@@ -67,7 +60,7 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
         for key, cam in embodiment.cameras.items()
         if key in config.image_features
     }
-    config.ee_pose = embodiment.ee_pose_dict()
+    config.ee_pose = embodiment.ee_pose_source.to_dict()
     if not config.action_adapter:
         if embodiment.action_adapter is None:
             raise ValueError(
@@ -116,108 +109,87 @@ def _validate_cameras(config) -> None:
             raise ValueError(f"Camera {key!r}: mesh must be one of {MESH_NAMES}, got {cam.get('mesh')!r}.")
 
 
-def scaled_intrinsics(K: np.ndarray, from_size, to_size) -> np.ndarray:
-    """Rescale K (pixel centres at integer coordinates) from image size (H, W) to (H', W')."""
-    K = np.array(K, dtype=np.float64).copy()
-    sy, sx = to_size[0] / from_size[0], to_size[1] / from_size[1]
-    K[0, 0] *= sx
-    K[1, 1] *= sy
-    K[0, 1] *= sx
-    K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
-    K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
-    return K
+def camera_calibrations(config, camera_keys: list[str]):
+    """`CameraCalibration`s of the policy's cameras, rescaled to the network's image size."""
+    from lerobot_rnd.embodiment import CameraCalibration
+
+    h, w = config.image_size
+    cams = []
+    for key in camera_keys:
+        cam = {k: v for k, v in config.cameras[key].items() if k != "mesh"}
+        cams.append(CameraCalibration.from_dict(cam).resized(h, w))
+    return cams
 
 
 class CameraRig(nn.Module):
     """Calibration of the policy's cameras as buffers, in the order of `camera_keys`.
 
     Buffers: K (C, 3, 3) at the network's image size, T_world_cam (C, 4, 4) for static cameras,
-    T_ee_cam (C, 4, 4) for cameras on the end effector, mounted (C,) bool, mesh_index (C,) long.
+    T_ee_cam (C, 4, 4) for cameras on the end effector, mounted (C,) bool, follow_rotation (C,) bool (False:
+    the camera follows the EE position only, MuJoCo "track" mode), mesh_index (C,) long.
     """
 
     def __init__(self, config, camera_keys: list[str]):
         super().__init__()
         _validate_cameras(config)
-        Ks, T_wc, T_ec, mounted, mesh_index = [], [], [], [], []
-        for key in camera_keys:
-            cam = config.cameras[key]
-            Ks.append(scaled_intrinsics(cam["K"], cam["image_size"], config.image_size))
-            is_mounted = cam.get("T_ee_cam") is not None
-            mounted.append(is_mounted)
-            T_wc.append(np.eye(4) if is_mounted else np.array(cam["T_world_cam"], dtype=np.float64))
-            T_ec.append(np.array(cam["T_ee_cam"], dtype=np.float64) if is_mounted else np.eye(4))
-            mesh_index.append(MESH_NAMES.index(cam.get("mesh", "full")))
-        self.register_buffer("K", torch.tensor(np.stack(Ks), dtype=torch.float32), persistent=False)
-        self.register_buffer("T_world_cam_static", torch.tensor(np.stack(T_wc), dtype=torch.float32), persistent=False)
-        self.register_buffer("T_ee_cam", torch.tensor(np.stack(T_ec), dtype=torch.float32), persistent=False)
-        self.register_buffer("mounted", torch.tensor(mounted), persistent=False)
+        cams = camera_calibrations(config, camera_keys)
+        eye = np.eye(4)
+        self.register_buffer("K", torch.tensor(np.stack([c.K for c in cams]), dtype=torch.float32), persistent=False)
+        self.register_buffer(
+            "T_world_cam_static",
+            torch.tensor(np.stack([c.T_world_cam if c.is_static else eye for c in cams]), dtype=torch.float32),
+            persistent=False,
+        )
+        self.register_buffer(
+            "T_ee_cam",
+            torch.tensor(np.stack([eye if c.is_static else c.T_ee_cam for c in cams]), dtype=torch.float32),
+            persistent=False,
+        )
+        self.register_buffer("mounted", torch.tensor([not c.is_static for c in cams]), persistent=False)
+        self.register_buffer(
+            "follow_rotation", torch.tensor([c.ee_follow_rotation for c in cams]), persistent=False
+        )
+        mesh_index = [MESH_NAMES.index(config.cameras[key].get("mesh", "full")) for key in camera_keys]
         self.register_buffer("mesh_index", torch.tensor(mesh_index, dtype=torch.long), persistent=False)
 
     def T_world_cam(self, T_world_ee: Tensor) -> Tensor:
-        """Camera poses for EE poses (..., 4, 4) -> (..., C, 4, 4); static cameras ignore the EE pose."""
-        on_ee = T_world_ee[..., None, :, :] @ self.T_ee_cam
-        static = self.T_world_cam_static.expand_as(on_ee)
-        return torch.where(self.mounted[:, None, None], on_ee, static)
+        """Camera poses for EE poses (..., 4, 4) -> T_world_cam (..., C, 4, 4).
+
+        Static cameras ignore the EE pose; mounted cameras are at T_world_ee @ T_ee_cam, or at
+        [I | p_world_ee] @ T_ee_cam when they follow the EE position only.
+        """
+        T_world_ee = T_world_ee[..., None, :, :]
+        translation_only = torch.zeros_like(T_world_ee)
+        translation_only[..., :3, :3] = torch.eye(3, device=T_world_ee.device, dtype=T_world_ee.dtype)
+        translation_only[..., :, 3] = T_world_ee[..., :, 3]
+        carrier = torch.where(self.follow_rotation[:, None, None], T_world_ee, translation_only)
+        on_ee = carrier @ self.T_ee_cam
+        return torch.where(self.mounted[:, None, None], on_ee, self.T_world_cam_static.expand_as(on_ee))
 
 
-class EEPoseReader(nn.Module):
-    """Reads the end-effector pose and gripper state from `observation.state`.
-
-    Spec (config.ee_pose): {"position_indices": [i, j, k], "rotation": one of ROTATION_FORMATS,
-    "rotation_indices": [...] (unless "fixed"), "fixed_rotation": 3x3 R_world_ee (for "fixed"),
-    "gripper_index": int or None, "T_flange_ee": optional 4x4 applied on the right}.
-    """
+class EEPoseReader:
+    """Reads T_world_ee (..., 4, 4) and the gripper state in [-1 open, +1 closed] from observation.state."""
 
     def __init__(self, spec: dict, state_dim: int):
-        super().__init__()
+        from lerobot_rnd.embodiment import EEPoseSource
+
         if not spec:
             raise ValueError("config.ee_pose is empty: the embodiment must say where the EE pose is in the state.")
-        self.position_indices = [int(i) for i in spec["position_indices"]]
-        self.rotation = spec.get("rotation", "fixed")
-        if self.rotation not in ROTATION_FORMATS:
-            raise ValueError(f"ee_pose.rotation must be one of {ROTATION_FORMATS}, got {self.rotation!r}.")
-        self.rotation_indices = [int(i) for i in spec.get("rotation_indices") or []]
-        expected = {"fixed": 0, "quat_wxyz": 4, "quat_xyzw": 4, "rotvec": 3, "rot6d": 6}[self.rotation]
-        if len(self.rotation_indices) != expected or len(self.position_indices) != 3:
+        self.source = EEPoseSource.from_dict(spec)
+        if self.source.min_state_dim() > state_dim:
             raise ValueError(
-                f"ee_pose: {self.rotation} needs 3 position and {expected} rotation indices, got "
-                f"{self.position_indices} and {self.rotation_indices}."
+                f"The EE pose source reads observation.state index {self.source.min_state_dim() - 1} but the state "
+                f"has {state_dim} values: the embodiment does not match this dataset."
             )
-        self.gripper_index = spec.get("gripper_index")
-        used = self.position_indices + self.rotation_indices + ([self.gripper_index] if self.gripper_index is not None else [])
-        if max(used) >= state_dim:
-            raise ValueError(
-                f"ee_pose reads state index {max(used)} but observation.state has {state_dim} values: the "
-                "embodiment does not match this dataset."
-            )
-        fixed = spec.get("fixed_rotation") or np.eye(3).tolist()
-        self.register_buffer("fixed_rotation", torch.tensor(fixed, dtype=torch.float32), persistent=False)
-        T_flange_ee = spec.get("T_flange_ee") or np.eye(4).tolist()
-        self.register_buffer("T_flange_ee", torch.tensor(T_flange_ee, dtype=torch.float32), persistent=False)
 
     def pose(self, state: Tensor) -> Tensor:
-        """state (..., D) -> T_world_ee (..., 4, 4)."""
-        state = state.float()
-        pos = state[..., self.position_indices]
-        if self.rotation == "fixed":
-            rot = self.fixed_rotation.expand(*state.shape[:-1], 3, 3)
-        else:
-            r = state[..., self.rotation_indices]
-            if self.rotation == "quat_wxyz":
-                rot = quat_wxyz_to_matrix(r)
-            elif self.rotation == "quat_xyzw":
-                rot = quat_wxyz_to_matrix(torch.cat([r[..., 3:], r[..., :3]], dim=-1))
-            elif self.rotation == "rotvec":
-                rot = so3_exp(r)
-            else:
-                rot = rotation_6d_to_matrix(r)
-        return make_transform(rot, pos) @ self.T_flange_ee
+        return self.source.ee_pose(state.float())
 
     def gripper(self, state: Tensor) -> Tensor:
-        """state (..., D) -> raw gripper state (...); zeros if the state has none."""
-        if self.gripper_index is None:
-            return state.new_zeros(state.shape[:-1]).float()
-        return state[..., self.gripper_index].float()
+        closure = self.source.gripper(state.float())
+        if closure is None:
+            return state.new_zeros(state.shape[:-1]).float() - 1.0
+        return 2.0 * closure - 1.0
 
 
 class MeshBuffers(nn.Module):

@@ -79,6 +79,7 @@ class RnDPolicy(PreTrainedPolicy):
         }
 
     def _stack_images(self, batch: dict[str, Tensor]) -> dict[str, Tensor]:
+        """Stack the cameras into batch[OBS_IMAGES] (..., C, 3, h, w), resized to the network's image size."""
         missing = [key for key in self.config.image_features if key not in batch]
         if missing:
             raise KeyError(
@@ -87,7 +88,8 @@ class RnDPolicy(PreTrainedPolicy):
                 "calibrate these cameras."
             )
         batch = dict(batch)
-        batch[OBS_IMAGES] = torch.stack([batch[key] for key in self.config.image_features], dim=-4)
+        images = [resize_images(batch[key], self.config.image_size, key) for key in self.config.image_features]
+        batch[OBS_IMAGES] = torch.stack(images, dim=-4)
         return batch
 
     @torch.no_grad()
@@ -138,6 +140,23 @@ class RnDPolicy(PreTrainedPolicy):
         return make_rnd_model_card(self.config, dataset_repo_id, license, tags)
 
 
+def resize_images(images: Tensor, size: tuple[int, int], key: str = "image") -> Tensor:
+    """Resize (..., 3, h0, w0) images to `size` (H, W); the aspect ratio must match (intrinsics scale with it)."""
+    h, w = size
+    h0, w0 = images.shape[-2:]
+    if (h0, w0) == (h, w):
+        return images
+    if h0 * w != w0 * h:
+        raise ValueError(
+            f"{key}: images are {h0}x{w0}, whose aspect ratio differs from the policy's {h}x{w}: crop the images "
+            "or recalibrate the camera for this size."
+        )
+    lead = images.shape[:-3]
+    flat = images.reshape(-1, images.shape[-3], h0, w0).float()
+    out = F.interpolate(flat, size=(h, w), mode="bilinear", antialias=True, align_corners=False)
+    return out.reshape(*lead, images.shape[-3], h, w)
+
+
 class RnDModel(nn.Module):
     """Rendering, normalisation, denoiser and sampler of R&D (everything but LeRobot's queues)."""
 
@@ -154,7 +173,6 @@ class RnDModel(nn.Module):
         action_shape = (t, 6) if config.per_horizon_action_normalization else (6,)
         self.action_stats = MinMaxStats(action_shape)
         self.displacement_stats = MinMaxStats((len(self.camera_keys), 3, 1, 1))
-        self.gripper_stats = MinMaxStats(())
 
         self.predict_image = config.variant in ("I", "AI")
         self.predict_action = config.variant in ("A", "AI")
@@ -201,15 +219,14 @@ class RnDModel(nn.Module):
         stats = estimate_rnd_statistics(self, dataset_meta)
         self.action_stats.set(stats["action_min"], stats["action_max"])
         self.displacement_stats.set(stats["displacement_min"], stats["displacement_max"])
-        self.gripper_stats.set(stats["gripper_min"], stats["gripper_max"])
 
     # ------------------------------------------------------------------------------------------------
     # Observation preparation.
     def prepare_observation(self, images: Tensor, state: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        """Resize images and read poses.
+        """Check shapes and read poses.
 
-        images: (B, H, C, 3, h0, w0) in [0, 1]; state: (B, H, D).
-        Returns images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper state (B, H) in [-1, 1].
+        images: (B, H, C, 3, h, w) in [0, 1] at the network's image size; state: (B, H, D).
+        Returns images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper state (B, H) in [-1 open, +1 closed].
         """
         if images.shape[1] != self.config.n_obs_steps or state.shape[1] != self.config.n_obs_steps:
             raise ValueError(
@@ -220,22 +237,9 @@ class RnDModel(nn.Module):
             raise ValueError(f"Expected {len(self.camera_keys)} cameras, got {images.shape[2]}.")
         if not torch.isfinite(state).all():
             raise ValueError("observation.state contains NaN or inf.")
-        h, w = self.config.image_size
-        if images.shape[-2:] != (h, w):
-            h0, w0 = images.shape[-2:]
-            if abs(h0 * w - w0 * h) > 0:
-                raise ValueError(
-                    f"Camera images are {h0}x{w0}, whose aspect ratio differs from the policy's {h}x{w}: "
-                    "crop the images or recalibrate the cameras for this size."
-                )
-            lead = images.shape[:-3]
-            images = F.interpolate(
-                images.reshape(-1, 3, h0, w0).float(), size=(h, w), mode="bilinear", antialias=True,
-                align_corners=False,
-            ).reshape(*lead, 3, h, w)
-        images = images.float().clamp(0, 1)
+        images = resize_images(images, self.config.image_size).float().clamp(0, 1)
         T_world_ee = self.ee_reader.pose(state)
-        gripper = self.gripper_stats.normalize(self.ee_reader.gripper(state))
+        gripper = self.ee_reader.gripper(state)
         return images, T_world_ee, gripper
 
     # ------------------------------------------------------------------------------------------------

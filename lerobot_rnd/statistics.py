@@ -1,8 +1,8 @@
 """Normalisation statistics of R&D's targets, estimated from a LeRobot dataset on disk.
 
-R&D normalises three things to [-1, 1] by min/max (the paper's appendix: without it nothing is learnt):
-the 6-D action chunk (translation + rotation vector of `T_ee_target`, jointly over the horizon or per step),
-the per-pixel image-space displacement (per camera and axis), and the gripper state.
+R&D normalises its targets to [-1, 1] by min/max (the paper's appendix: without it nothing is learnt):
+the 6-D action chunk (translation + rotation vector of `T_ee_target`, jointly over the horizon or per step)
+and the per-pixel image-space displacement (per camera and axis).
 """
 
 import logging
@@ -123,9 +123,6 @@ def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 64) -> dict[s
         a_max = torch.where(flat_valid[:, None], flat, -big).amax(0)
     model.action_stats.set(a_min, a_max)
 
-    all_grip = model.ee_reader.gripper(torch.from_numpy(np.concatenate([s for s, _ in episodes])).to(device))
-    g_min, g_max = all_grip.min(), all_grip.max()
-
     n_cam = len(model.camera_keys)
     d_min = torch.full((n_cam, 3), float("inf"), device=device)
     d_max = torch.full((n_cam, 3), float("-inf"), device=device)
@@ -162,8 +159,6 @@ def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 64) -> dict[s
         "action_max": a_max,
         "displacement_min": d_min[..., None, None],
         "displacement_max": d_max[..., None, None],
-        "gripper_min": g_min,
-        "gripper_max": g_max,
     }
 
 

@@ -10,7 +10,7 @@ import os
 if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
     os.environ["MUJOCO_GL"] = "egl"
 
-from lerobot_rnd.sim.metaworld_env import (  # noqa: E402
+from lerobot_rnd.sim.metaworld_env import (
     GYM_NAMESPACE,
     METAWORLD_V3_TASKS,
     RnDMetaWorldEnv,
@@ -20,4 +20,10 @@ from lerobot_rnd.sim.metaworld_env import (  # noqa: E402
 
 register_gym_envs()
 
-__all__ = ["GYM_NAMESPACE", "METAWORLD_V3_TASKS", "RnDMetaWorldEnv", "RnDMetaWorldEnvConfig", "register_gym_envs"]
+__all__ = [
+    "GYM_NAMESPACE",
+    "METAWORLD_V3_TASKS",
+    "RnDMetaWorldEnv",
+    "RnDMetaWorldEnvConfig",
+    "register_gym_envs",
+]

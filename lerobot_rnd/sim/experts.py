@@ -13,7 +13,7 @@ def metaworld_policy_class_name(task: str) -> str:
     """Name of MetaWorld's scripted policy class for a V3 task ("reach-v3" -> "SawyerReachV3Policy")."""
     spec = find_spec("lerobot")
     if spec is not None and spec.submodule_search_locations:
-        cfg = Path(list(spec.submodule_search_locations)[0]) / "envs" / "metaworld_config.json"
+        cfg = Path(next(iter(spec.submodule_search_locations))) / "envs" / "metaworld_config.json"
         if cfg.exists():
             mapping = json.loads(cfg.read_text()).get("TASK_POLICY_MAPPING", {})
             if task in mapping:
@@ -32,7 +32,7 @@ class MetaWorldExpert:
     """
 
     def __init__(self, task: str, noise_std: float = 0.0, seed: int | None = None):
-        import metaworld.policies as policies
+        from metaworld import policies
 
         name = metaworld_policy_class_name(task)
         if not hasattr(policies, name):

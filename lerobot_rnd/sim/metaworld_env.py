@@ -29,15 +29,19 @@ loop forever) are detected and resampled (random) or refused (explicit).
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from importlib.util import find_spec
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from lerobot.configs.types import FeatureType, PolicyFeature
+from lerobot.envs.configs import EnvConfig
+from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 
 from lerobot_rnd.embodiment import LEROBOT_CORNER2_POS, SAWYER_EE_BODY
 
@@ -53,9 +57,12 @@ METAWORLD_V3_TASKS = (
     "push-wall-v3", "push-back-v3", "reach-v3", "reach-wall-v3", "shelf-place-v3", "sweep-into-v3",
     "sweep-v3", "window-open-v3", "window-close-v3",
 )  # fmt: skip
+logger = logging.getLogger(__name__)
 GYM_NAMESPACE = "gym_rnd_metaworld"
 DEFAULT_CAMERAS = ("corner2", "behindGripper")
 STATE_NAMES = ["hand_x", "hand_y", "hand_z", "gripper_open", "hand_qw", "hand_qx", "hand_qy", "hand_qz"]
+MOCAP_STATE_NAMES = ["mocap_x", "mocap_y", "mocap_z"]
+STATE_LAYOUTS = {"pos_grip_quat": STATE_NAMES, "pos_grip_quat_mocap": STATE_NAMES + MOCAP_STATE_NAMES}
 ACTION_NAMES = ["dx", "dy", "dz", "gripper"]
 METAWORLD_FPS = 80  # frame_skip 5 x timestep 2.5 ms
 MAX_PATH_LENGTH = 500  # MetaWorld refuses to step further
@@ -96,7 +103,7 @@ def patch_metaworld_for_mujoco() -> None:
 def task_description(task: str) -> str:
     spec = find_spec("lerobot")
     if spec is not None and spec.submodule_search_locations:
-        cfg = Path(list(spec.submodule_search_locations)[0]) / "envs" / "metaworld_config.json"
+        cfg = Path(next(iter(spec.submodule_search_locations))) / "envs" / "metaworld_config.json"
         if cfg.exists():
             desc = json.loads(cfg.read_text()).get("TASK_DESCRIPTIONS", {}).get(task)
             if desc:
@@ -119,7 +126,7 @@ def make_metaworld_task_env(task: str):
     """The raw MetaWorld env for ``task`` with the goal observable (the scripted experts need it)."""
     task = _check_task(task)
     patch_metaworld_for_mujoco()
-    import metaworld.env_dict as env_dict
+    from metaworld import env_dict
 
     cls = env_dict.ALL_V3_ENVIRONMENTS[task]
     env = cls()  # no render_mode: we render with our own fast renderer
@@ -158,7 +165,7 @@ class RnDMetaWorldEnv(gym.Env):
             ``render_camera`` when those are set.
     """
 
-    metadata = {"render_modes": ["rgb_array"], "render_fps": METAWORLD_FPS}
+    metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": METAWORLD_FPS}
 
     def __init__(
         self,
@@ -178,6 +185,7 @@ class RnDMetaWorldEnv(gym.Env):
         visualization_height: int | None = None,
         visualization_width: int | None = None,
         obs_type: str = "pixels_agent_pos",
+        state_layout: str = "pos_grip_quat",
     ):
         super().__init__()
         import mujoco
@@ -187,6 +195,10 @@ class RnDMetaWorldEnv(gym.Env):
         if obs_type != "pixels_agent_pos":
             raise ValueError(f"obs_type must be 'pixels_agent_pos', got {obs_type!r}")
         self.obs_type = obs_type
+        if state_layout not in STATE_LAYOUTS:
+            raise ValueError(f"state_layout must be one of {sorted(STATE_LAYOUTS)}, got {state_layout!r}")
+        self.state_layout = state_layout
+        self.state_names = list(STATE_LAYOUTS[state_layout])
         self.camera_names = tuple(camera_names)
         if not self.camera_names:
             raise ValueError("camera_names is empty")
@@ -194,7 +206,9 @@ class RnDMetaWorldEnv(gym.Env):
         self.flip_cameras = tuple(flip_cameras)
         unknown_flip = set(self.flip_cameras) - set(self.camera_names)
         if unknown_flip:
-            raise ValueError(f"flip_cameras {sorted(unknown_flip)} are not in camera_names {self.camera_names}")
+            raise ValueError(
+                f"flip_cameras {sorted(unknown_flip)} are not in camera_names {self.camera_names}"
+            )
         self.corner2_pos = None if corner2_pos is None else tuple(float(v) for v in corner2_pos)
         if not 0 < int(episode_length) <= MAX_PATH_LENGTH:
             raise ValueError(f"episode_length must be in 1..{MAX_PATH_LENGTH}, got {episode_length}")
@@ -202,7 +216,9 @@ class RnDMetaWorldEnv(gym.Env):
         if placement not in ("random", "fixed"):
             raise ValueError(f"placement must be 'random' or 'fixed', got {placement!r}")
         self.placement_mode = placement
-        self.placements = None if placements is None else [np.asarray(p, dtype=np.float64) for p in placements]
+        self.placements = (
+            None if placements is None else [np.asarray(p, dtype=np.float64) for p in placements]
+        )
         if placement == "fixed" and not self.placements:
             raise ValueError("placement='fixed' needs a non-empty list of placements")
         self.terminate_on_success = bool(terminate_on_success)
@@ -222,7 +238,9 @@ class RnDMetaWorldEnv(gym.Env):
                 names = [self.model.camera(i).name for i in range(self.model.ncam)]
                 raise ValueError(f"unknown MetaWorld camera {cam!r}; cameras: {names}")
         if self.corner2_pos is not None:
-            self.model.cam_pos[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, "corner2")] = self.corner2_pos
+            self.model.cam_pos[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, "corner2")] = (
+                self.corner2_pos
+            )
         self.fast_render = bool(fast_render)
         if self.fast_render:
             self.model.vis.quality.offsamples = 0
@@ -242,7 +260,9 @@ class RnDMetaWorldEnv(gym.Env):
         def guarded_rand_vec():  # MetaWorld re-calls this in a while loop until object/goal are apart
             self._rand_calls += 1
             if self._rand_calls > 8:
-                raise PlacementRejected(f"placement {self._env._last_rand_vec} rejected by {self.task}'s reset")
+                raise PlacementRejected(
+                    f"placement {self._env._last_rand_vec} rejected by {self.task}'s reset"
+                )
             return orig()
 
         self._env._get_state_rand_vec = guarded_rand_vec
@@ -253,7 +273,7 @@ class RnDMetaWorldEnv(gym.Env):
                 "pixels": spaces.Dict(
                     {c: spaces.Box(0, 255, shape=(H, W, 3), dtype=np.uint8) for c in self.camera_names}
                 ),
-                "agent_pos": spaces.Box(-np.inf, np.inf, shape=(len(STATE_NAMES),), dtype=np.float32),
+                "agent_pos": spaces.Box(-np.inf, np.inf, shape=(len(self.state_names),), dtype=np.float32),
             }
         )
         self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
@@ -276,17 +296,39 @@ class RnDMetaWorldEnv(gym.Env):
         return rng.uniform(sp.low, sp.high).astype(np.float64)
 
     def is_valid_placement(self, placement: Sequence[float]) -> bool:
-        """Whether MetaWorld accepts the placement (resets the env as a side effect)."""
+        """Whether MetaWorld's reset accepts the placement (object and goal far enough apart).
+
+        A dry run of the task's ``reset_model`` without the 50 hand-settling steps (about 1 ms); the
+        env must be reset again before stepping.
+        """
+        vec = np.asarray(placement, dtype=np.float64)
+        sp = self.placement_space
+        if vec.shape != sp.low.shape:
+            raise ValueError(
+                f"{self.task}: placement must have {sp.low.shape[0]} numbers, got shape {vec.shape}"
+            )
+        inner = self._env
+        if getattr(inner, "init_tcp", None) is None:  # normally set by _reset_hand
+            inner.init_tcp = inner.tcp_center
+        inner._freeze_rand_vec = True
+        inner._last_rand_vec = vec.copy()
+        self._rand_calls = 0
+        inner._reset_hand = lambda *a, **k: None  # instance attribute shadows the method
         try:
-            self._reset_inner(np.asarray(placement, dtype=np.float64))
+            inner.reset_model()
         except PlacementRejected:
             return False
+        finally:
+            del inner._reset_hand
+            self._raw_obs = None  # force a real reset before stepping
         return True
 
     def _reset_inner(self, vec: np.ndarray) -> np.ndarray:
         sp = self.placement_space
         if vec.shape != sp.low.shape:
-            raise ValueError(f"{self.task}: placement must have {sp.low.shape[0]} numbers, got shape {vec.shape}")
+            raise ValueError(
+                f"{self.task}: placement must have {sp.low.shape[0]} numbers, got shape {vec.shape}"
+            )
         self._env._freeze_rand_vec = True
         self._env._last_rand_vec = vec.copy()
         self._rand_calls = 0
@@ -355,8 +397,8 @@ class RnDMetaWorldEnv(gym.Env):
         for r in self._renderers.values():
             try:
                 r.close()
-            except Exception:  # noqa: BLE001
-                pass
+            except Exception as e:  # noqa: BLE001
+                logger.debug("closing a MuJoCo renderer failed: %s", e)
         self._renderers.clear()
         self._env.close()
 
@@ -378,7 +420,10 @@ class RnDMetaWorldEnv(gym.Env):
         q = q / np.linalg.norm(q)
         if q[0] < 0:
             q = -q
-        return np.concatenate([pos, [grip], q]).astype(np.float32)
+        parts = [pos, [grip], q]
+        if self.state_layout == "pos_grip_quat_mocap":
+            parts.append(self.mocap_pos())
+        return np.concatenate(parts).astype(np.float32)
 
     def hand_pose(self) -> np.ndarray:
         """World-from-EE (body "hand") 4x4 pose."""
@@ -446,7 +491,7 @@ class RnDMetaWorldEnv(gym.Env):
                 f"{GYM_NAMESPACE}/{self.task}: cameras {list(self.camera_names)} at "
                 f"{self.image_size[0]}x{self.image_size[1]}, flipped {list(self.flip_cameras)}, "
                 f"corner2_pos {None if self.corner2_pos is None else list(self.corner2_pos)}; "
-                f"state {STATE_NAMES}; EE frame = body 'hand'"
+                f"state {self.state_names}; EE frame = body 'hand'"
             ),
         )
 
@@ -458,75 +503,71 @@ def register_gym_envs() -> None:
     for task in METAWORLD_V3_TASKS:
         env_id = f"{GYM_NAMESPACE}/{task}"
         if env_id not in registry:
-            gym.register(id=env_id, entry_point="lerobot_rnd.sim.metaworld_env:RnDMetaWorldEnv", kwargs={"task": task})
+            gym.register(
+                id=env_id, entry_point="lerobot_rnd.sim.metaworld_env:RnDMetaWorldEnv", kwargs={"task": task}
+            )
 
 
 # --------------------------------------------------------------------------------------------------
 # LeRobot EnvConfig
 # --------------------------------------------------------------------------------------------------
-def _register_env_config():
-    from lerobot.configs.types import FeatureType, PolicyFeature
-    from lerobot.envs.configs import EnvConfig
-    from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
+@EnvConfig.register_subclass("rnd_mw")
+@dataclass
+class RnDMetaWorldEnvConfig(EnvConfig):
+    """``--env.type=rnd_mw``: MetaWorld with the cameras and state R&D needs (lerobot_rnd.sim)."""
 
-    @EnvConfig.register_subclass("rnd_mw")
-    @dataclass
-    class RnDMetaWorldEnvConfig(EnvConfig):
-        """``--env.type=rnd_mw``: MetaWorld with the cameras and state R&D needs (lerobot_rnd.sim)."""
+    task: str | None = "reach-v3"
+    fps: int = METAWORLD_FPS
+    episode_length: int = 300
+    obs_type: str = "pixels_agent_pos"
+    render_mode: str = "rgb_array"
+    camera_names: list[str] = field(default_factory=lambda: list(DEFAULT_CAMERAS))
+    observation_height: int = 128
+    observation_width: int = 128
+    flip_cameras: list[str] = field(default_factory=list)
+    use_lerobot_corner2_pos: bool = True
+    placement: str = "random"
+    terminate_on_success: bool = True
+    state_layout: str = "pos_grip_quat"
+    features: dict[str, PolicyFeature] = field(
+        default_factory=lambda: {ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(4,))}
+    )
+    features_map: dict[str, str] = field(default_factory=lambda: {ACTION: ACTION, "agent_pos": OBS_STATE})
 
-        task: str | None = "reach-v3"
-        fps: int = METAWORLD_FPS
-        episode_length: int = 300
-        obs_type: str = "pixels_agent_pos"
-        render_mode: str = "rgb_array"
-        camera_names: list[str] = field(default_factory=lambda: list(DEFAULT_CAMERAS))
-        observation_height: int = 128
-        observation_width: int = 128
-        flip_cameras: list[str] = field(default_factory=list)
-        use_lerobot_corner2_pos: bool = True
-        placement: str = "random"
-        terminate_on_success: bool = True
-        features: dict[str, PolicyFeature] = field(
-            default_factory=lambda: {ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(4,))}
+    def __post_init__(self):
+        if self.state_layout not in STATE_LAYOUTS:
+            raise ValueError(
+                f"state_layout must be one of {sorted(STATE_LAYOUTS)}, got {self.state_layout!r}"
+            )
+        self.features["agent_pos"] = PolicyFeature(
+            type=FeatureType.STATE, shape=(len(STATE_LAYOUTS[self.state_layout]),)
         )
-        features_map: dict[str, str] = field(default_factory=lambda: {ACTION: ACTION, "agent_pos": OBS_STATE})
+        for cam in self.camera_names:
+            self.features[f"pixels/{cam}"] = PolicyFeature(
+                type=FeatureType.VISUAL, shape=(self.observation_height, self.observation_width, 3)
+            )
+            self.features_map[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
 
-        def __post_init__(self):
-            self.features["agent_pos"] = PolicyFeature(type=FeatureType.STATE, shape=(len(STATE_NAMES),))
-            for cam in self.camera_names:
-                self.features[f"pixels/{cam}"] = PolicyFeature(
-                    type=FeatureType.VISUAL, shape=(self.observation_height, self.observation_width, 3)
-                )
-                self.features_map[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
+    @property
+    def package_name(self) -> str:
+        return "lerobot_rnd.sim"
 
-        @property
-        def package_name(self) -> str:
-            return "lerobot_rnd.sim"
+    @property
+    def gym_id(self) -> str:
+        return f"{GYM_NAMESPACE}/{self.task}"
 
-        @property
-        def gym_id(self) -> str:
-            return f"{GYM_NAMESPACE}/{self.task}"
-
-        @property
-        def gym_kwargs(self) -> dict:
-            return {
-                "camera_names": list(self.camera_names),
-                "observation_height": self.observation_height,
-                "observation_width": self.observation_width,
-                "flip_cameras": list(self.flip_cameras),
-                "corner2_pos": LEROBOT_CORNER2_POS if self.use_lerobot_corner2_pos else None,
-                "episode_length": self.episode_length,
-                "placement": self.placement,
-                "terminate_on_success": self.terminate_on_success,
-                "render_mode": self.render_mode,
-                "obs_type": self.obs_type,
-            }
-
-    return RnDMetaWorldEnvConfig
-
-
-try:
-    RnDMetaWorldEnvConfig = _register_env_config()
-except ImportError:  # pragma: no cover - lerobot missing: the gym env still works
-    RnDMetaWorldEnvConfig = None
-
+    @property
+    def gym_kwargs(self) -> dict:
+        return {
+            "camera_names": list(self.camera_names),
+            "observation_height": self.observation_height,
+            "observation_width": self.observation_width,
+            "flip_cameras": list(self.flip_cameras),
+            "corner2_pos": LEROBOT_CORNER2_POS if self.use_lerobot_corner2_pos else None,
+            "episode_length": self.episode_length,
+            "placement": self.placement,
+            "terminate_on_success": self.terminate_on_success,
+            "render_mode": self.render_mode,
+            "obs_type": self.obs_type,
+            "state_layout": self.state_layout,
+        }

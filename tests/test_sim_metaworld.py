@@ -1,0 +1,332 @@
+"""MetaWorld env, calibration against MuJoCo's own rendering, LeRobot env config and the recorder.
+
+Independent references: MuJoCo's segmentation rendering (where it draws a marker sphere / the gripper
+geoms) versus our calibration's projection / our renderer's mask of the extracted mesh.
+"""
+
+import json
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("metaworld")
+mujoco = pytest.importorskip("mujoco")
+
+
+def _gl_available() -> bool:
+    try:
+        m = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
+        r = mujoco.Renderer(m, 8, 8)
+        r.render()
+        r.close()
+        return True
+    except Exception:  # noqa: BLE001
+        return False
+
+
+pytestmark = pytest.mark.skipif(not _gl_available(), reason="no headless OpenGL (MUJOCO_GL=egl/osmesa)")
+
+from lerobot_rnd.embodiment import camera_from_mujoco
+from lerobot_rnd.sim.experts import MetaWorldExpert
+from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
+
+SITE = int(mujoco.mjtObj.mjOBJ_SITE)
+GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+
+
+def segmentation(env, camera, size, markers=(), radii=(), markers_only=False, only_geoms=None):
+    """MuJoCo segmentation image (objid, objtype) with marker spheres as objid 1000+i (type site).
+
+    ``markers_only``: the model's geoms are dropped (nothing occludes the markers); ``only_geoms``:
+    only these geoms are drawn (no occlusion by the arm or the sites)."""
+    r = mujoco.Renderer(env.model, size[0], size[1])
+    r.enable_segmentation_rendering()
+    opt = mujoco.MjvOption()
+    saved = env.model.geom_group.copy()
+    if only_geoms is not None:
+        env.model.geom_group[:] = 0
+        env.model.geom_group[only_geoms] = 5
+        opt.geomgroup[:] = 0
+        opt.geomgroup[5] = 1
+        opt.sitegroup[:] = 0
+    try:
+        r.update_scene(env.data, camera=camera, scene_option=opt)
+    finally:
+        env.model.geom_group[:] = saved
+    if markers_only:
+        r.scene.ngeom = 0
+    for i, (p, rad) in enumerate(zip(markers, radii, strict=True)):
+        g = r.scene.geoms[r.scene.ngeom]
+        mujoco.mjv_initGeom(
+            g, mujoco.mjtGeom.mjGEOM_SPHERE, np.array([rad, 0, 0]), np.asarray(p, float), np.eye(3).ravel(),
+            np.ones(4, np.float32),
+        )  # fmt: skip
+        g.objtype, g.objid, g.segid = SITE, 1000 + i, r.scene.ngeom
+        r.scene.ngeom += 1
+    seg = r.render().copy()
+    r.close()
+    if camera in env.flip_cameras:
+        seg = seg[::-1, ::-1]
+    return seg
+
+
+def marker_errors(env, cam, size, seed=0):
+    """Pixel error between the centroids of marker spheres as MuJoCo draws them and our projection
+    of their centres. The markers sit on a 4x4 grid of pixels at random depths (0.3-1.5 m)."""
+    rng = np.random.default_rng(seed)
+    T_we = torch.tensor(env.hand_pose())
+    H, W = size
+    gu, gv = np.meshgrid(np.linspace(0.15, 0.85, 4) * (W - 1), np.linspace(0.15, 0.85, 4) * (H - 1))
+    uv1 = (
+        np.stack([gu.ravel(), gv.ravel(), np.ones(16)], 1) + np.c_[rng.uniform(-2, 2, (16, 2)), np.zeros(16)]
+    )
+    depth = rng.uniform(0.3, 1.5, 16)
+    p_cam = (np.linalg.inv(cam.K) @ uv1.T).T * depth[:, None]
+    T_wc = cam.T_world_cam_at(T_we).numpy()
+    pts = p_cam @ T_wc[:3, :3].T + T_wc[:3, 3]
+    n = len(pts)
+    uv, z = cam.project(torch.tensor(pts), T_we)
+    f = cam.K[1, 1]
+    radii = 5.0 * z.numpy() / f  # about 5 px on screen
+    seg = segmentation(env, cam.name, size, pts, radii, markers_only=True)
+    errs = []
+    for i in range(n):
+        m = (seg[..., 0] == 1000 + i) & (seg[..., 1] == SITE)
+        if m.sum() < 0.9 * np.pi * 25:  # off screen or behind another marker
+            continue
+        vv, uu = np.nonzero(m)
+        errs.append([uu.mean() - uv[i, 0].item(), vv.mean() - uv[i, 1].item()])
+    return np.asarray(errs)
+
+
+@pytest.fixture(scope="module")
+def env_mid_motion():
+    """reach-v3 after 25 expert steps: the hand moves and is tilted by a few degrees."""
+    env = RnDMetaWorldEnv("reach-v3", flip_cameras=("corner2",))
+    ex = MetaWorldExpert("reach-v3")
+    env.reset(seed=0)
+    for _ in range(25):
+        env.step(ex(env.raw_observation))
+    yield env
+    env.close()
+
+
+def test_hand_is_tilted(env_mid_motion):
+    R = env_mid_motion.hand_pose()[:3, :3]
+    R0 = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)  # mocap orientation
+    angle = np.degrees(np.arccos(np.clip((np.trace(R0.T @ R) - 1) / 2, -1, 1)))
+    assert angle > 1.0  # the EE-mounted camera check below is meaningful only if the hand is not at R0
+
+
+@pytest.mark.parametrize("camera", ["corner2", "behindGripper"])
+def test_calibration_matches_mujoco_projection(env_mid_motion, camera):
+    env = env_mid_motion
+    emb = env.embodiment()
+    cam = emb.cameras[f"observation.images.{camera}"]
+    errs = marker_errors(env, cam, cam.image_size)
+    assert len(errs) >= 14
+    assert np.abs(errs.mean(0)).max() < 0.05, errs.mean(0)  # a 0.5 px principal point error would show
+    assert np.abs(errs).max() < 0.35, np.abs(errs).max()
+    # resized intrinsics vs MuJoCo rendering at 3x the size
+    big = cam.resized(384, 384)
+    errs = marker_errors(env, big, (384, 384), seed=1)
+    assert len(errs) >= 14
+    assert np.abs(errs.mean(0)).max() < 0.05 and np.abs(errs).max() < 0.35, errs
+
+
+def test_non_square_intrinsics(env_mid_motion):
+    env = env_mid_motion
+    cam = camera_from_mujoco(env.model, env.data, "corner3", (96, 160))
+    assert cam.K[0, 0] == pytest.approx(cam.K[1, 1])
+    errs = marker_errors(env, cam, (96, 160), seed=2)
+    assert len(errs) >= 14 and np.abs(errs.mean(0)).max() < 0.05 and np.abs(errs).max() < 0.35, errs
+
+
+def gripper_iou(env, key, size=None):
+    from lerobot_rnd.geometry import invert_transform
+    from lerobot_rnd.rendering import render
+
+    emb = env.embodiment()
+    cam = emb.cameras[key] if size is None else emb.cameras[key].resized(*size)
+    m = env.model
+    root = m.body("right_hand").id
+    geoms = []
+    for g in range(m.ngeom):
+        b = int(m.geom_bodyid[g])
+        while b > 0 and b != root:
+            b = int(m.body_parentid[b])
+        if b == root:
+            geoms.append(g)
+    seg = segmentation(env, cam.name, cam.image_size, only_geoms=geoms)  # no occlusion by the arm
+    gt = np.isin(seg[..., 0], geoms) & (seg[..., 1] == GEOM)
+    state = torch.as_tensor(env.state(), dtype=torch.float64)
+    T_we = emb.ee_pose_source.ee_pose(state)  # the EE pose as the policy reads it from observation.state
+    T_ce = invert_transform(cam.T_world_cam_at(T_we)) @ T_we
+    out = render(
+        emb.mesh_batch(),
+        torch.tensor([emb.mesh_index(key)]),
+        T_ce[None].float(),
+        cam.K_tensor()[None],
+        cam.image_size,
+    )
+    pm = out.mask[0].numpy()
+    return (gt & pm).sum() / (gt | pm).sum(), int(gt.sum())
+
+
+def test_gripper_mask_iou(env_mid_motion):
+    """Our renderer's mask of the extracted, simplified mesh at the pose read from observation.state vs
+    MuJoCo's segmentation of the gripper geoms (drawn alone: the arm would occlude part of them)."""
+    iou, n = gripper_iou(env_mid_motion, "observation.images.behindGripper")
+    assert n > 300 and iou >= 0.92, (iou, n)
+    iou, n = gripper_iou(env_mid_motion, "observation.images.corner2")  # about 110 px: boundary-limited
+    assert n > 80 and iou >= 0.85, (iou, n)
+    for key in ("observation.images.corner2", "observation.images.behindGripper"):
+        iou, n = gripper_iou(env_mid_motion, key, size=(384, 384))
+        assert n > 900 and iou >= 0.93, (key, iou, n)
+
+
+def test_reset_with_fixed_placement_is_reproducible():
+    env = RnDMetaWorldEnv("push-v3", episode_length=50)
+    placement = np.array([0.05, 0.62, 0.02, -0.05, 0.85, 0.01])
+    obs1, _ = env.reset(options={"placement": placement})
+    a = np.array([0.3, -0.2, 0.1, 1.0], np.float32)
+    for _ in range(5):
+        obs1, *_ = env.step(a)
+    np.testing.assert_allclose(env.placement, placement)
+    obs2, _ = env.reset(seed=123)  # something else in between
+    obs2, _ = env.reset(options={"placement": placement})
+    for _ in range(5):
+        obs2, *_ = env.step(a)
+    np.testing.assert_array_equal(obs1["agent_pos"], obs2["agent_pos"])
+    for c in env.camera_names:
+        np.testing.assert_array_equal(obs1["pixels"][c], obs2["pixels"][c])
+    # the object sits where the placement puts it
+    np.testing.assert_allclose(env.data.body("obj").xpos[:2], placement[:2], atol=0.01)
+    # seeded random placements are reproducible and differ between seeds
+    env.reset(seed=7)
+    p7 = env.placement
+    env.reset(seed=8)
+    assert not np.allclose(env.placement, p7)
+    env.reset(seed=7)
+    np.testing.assert_array_equal(env.placement, p7)
+    # MetaWorld would loop forever on object == goal: refused with a clear error
+    bad = np.array([0.0, 0.7, 0.02, 0.0, 0.7, 0.02])
+    assert not env.is_valid_placement(bad)
+    with pytest.raises(ValueError, match="rejects placement"):
+        env.reset(options={"placement": bad})
+    env.close()
+
+
+def test_observation_layout_and_expert_success():
+    env = RnDMetaWorldEnv("reach-v3", observation_height=64, observation_width=96, episode_length=200)
+    obs, info = env.reset(seed=3)
+    assert env.observation_space.contains(obs)
+    assert set(obs["pixels"]) == {"corner2", "behindGripper"}
+    assert obs["pixels"]["corner2"].shape == (64, 96, 3) and obs["pixels"]["corner2"].dtype == np.uint8
+    s = obs["agent_pos"]
+    assert s.shape == (8,) and s.dtype == np.float32
+    np.testing.assert_allclose(s[:3], env.raw_observation[:3], atol=1e-6)  # MetaWorld's hand position
+    np.testing.assert_allclose(s[3], env.raw_observation[3], atol=1e-6)  # MetaWorld's gripper opening
+    assert np.linalg.norm(s[4:]) == pytest.approx(1.0, abs=1e-5)
+    ex = MetaWorldExpert("reach-v3")
+    for t in range(200):
+        obs, _, term, trunc, info = env.step(ex(env.raw_observation))
+        if term or trunc:
+            break
+    assert term and info["is_success"] and not trunc
+    assert env.render().shape == (64, 192, 3)
+    env.close()
+
+
+def test_state_layout_with_mocap():
+    env = RnDMetaWorldEnv("reach-v3", state_layout="pos_grip_quat_mocap", camera_names=("corner2",))
+    obs, _ = env.reset(seed=0)
+    assert obs["agent_pos"].shape == (11,)
+    np.testing.assert_allclose(obs["agent_pos"][8:], env.mocap_pos(), atol=1e-6)
+    env.close()
+
+
+def test_lerobot_env_config_and_make_env():
+    import gymnasium as gym
+    from lerobot.envs.configs import EnvConfig
+    from lerobot.envs.factory import make_env
+    from lerobot.envs.utils import env_to_policy_features, preprocess_observation
+
+    import lerobot_rnd  # noqa: F401  (registers rnd_mw)
+
+    cfg = EnvConfig.get_choice_class("rnd_mw")(task="reach-v3", episode_length=5)
+    assert "metaworld" not in cfg.type and "libero" not in cfg.type
+    feats = env_to_policy_features(cfg)
+    assert feats["observation.images.corner2"].shape == (3, 128, 128)
+    assert feats["observation.images.behindGripper"].shape == (3, 128, 128)
+    assert feats["observation.state"].shape == (8,) and feats["action"].shape == (4,)
+    envs = make_env(cfg, n_envs=2)
+    vec = envs["rnd_mw"][0]
+    assert isinstance(vec, gym.vector.VectorEnv)
+    obs, _ = vec.reset(seed=[0, 1])
+    batch = preprocess_observation(obs)
+    assert batch["observation.images.corner2"].shape == (2, 3, 128, 128)
+    assert batch["observation.state"].shape == (2, 8)
+    assert vec.call("_max_episode_steps")[0] == 5
+    done = np.zeros(2, bool)
+    for _ in range(5):
+        obs, _, term, trunc, info = vec.step(np.zeros((2, 4), np.float32))
+        done |= term | trunc
+    assert done.all() and "final_info" in info
+    vec.close()
+
+
+def test_weld_patch_fixes_lerobot_metaworld():
+    import metaworld
+
+    import lerobot_rnd.sim  # noqa: F401
+
+    mt1 = metaworld.MT1("reach-v3", seed=0)  # fails on MuJoCo >= 3.4 without the patch
+    env = mt1.train_classes["reach-v3"]()
+    env.set_task(mt1.train_tasks[0])
+    obs, _ = env.reset()
+    assert obs.shape == (39,)
+    env.close()
+
+
+def test_recorder_writes_loadable_dataset(tmp_path):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_rnd.embodiment import Embodiment
+    from lerobot_rnd.sim.record import RecordSettings, main, record_metaworld
+
+    root = tmp_path / "mw_reach"
+    settings = RecordSettings(
+        task="reach-v3", episodes=2, root=str(root), repo_id="local/mw_reach", placements="fps", fps_pool=64,
+        image_size=64, extra_steps=3,
+    )  # fmt: skip
+    summary = record_metaworld(settings, progress=False)
+    assert summary["episodes"] == 2 and summary["failures"] == 0
+    # resume to 3 episodes through the CLI
+    assert main(["--task", "reach-v3", "--episodes", "3", "--root", str(root), "--repo-id", "local/mw_reach",
+                 "--placements", "fps", "--fps-pool", "64", "--image-size", "64", "--extra-steps", "3",
+                 "--resume"]) == 0  # fmt: skip
+    with pytest.raises(FileExistsError, match="--resume"):
+        record_metaworld(settings, progress=False)
+
+    ds = LeRobotDataset("local/mw_reach", root=root)
+    assert ds.num_episodes == 3 and ds.fps == 80
+    item = ds[0]
+    assert item["observation.images.corner2"].shape == (3, 64, 64)
+    assert item["observation.images.behindGripper"].shape == (3, 64, 64)
+    assert item["observation.state"].shape == (8,) and item["action"].shape == (4,)
+    assert item["task"] == "Reach a goal position"
+    emb = Embodiment.load_json(root / "meta" / "rnd_embodiment.json")
+    emb.validate_against(ds.meta.features)
+    rec = json.loads((root / "meta" / "rnd_recording.json").read_text())
+    idx = [a["placement_index"] for a in rec["attempts"]]
+    assert idx == list(range(len(idx))) and sum(a["success"] for a in rec["attempts"]) == 3
+    # every episode is a success followed by the extra frames
+    last = ds[ds.meta.episodes["dataset_to_index"][0] - 1]
+    st = last["observation.state"].numpy()
+    goal = np.asarray(rec["attempts"][0]["placement"][3:])
+    assert np.linalg.norm(st[:3] - goal) < 0.06  # the hand is at the goal (MetaWorld: < 5 cm from tcp)
