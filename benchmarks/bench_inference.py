@@ -20,7 +20,8 @@ For R&D a second pass splits one chunk into rendering (`RnDModel.render_frames`)
 (`RnDDenoiser.forward`), SVD (`register_point_update`) and the rest, by wrapping those calls with timers.
 
     python benchmarks/bench_inference.py                      # CPU (and CUDA if available), ~5 min on 2 cores
-    python benchmarks/bench_inference.py --device cuda --repeats 20 --warmup 3 --out benchmarks/results/inference_cuda.json
+    python benchmarks/bench_inference.py --device cuda --repeats 20 --warmup 3 \
+        --out benchmarks/results/inference_cuda.json
     python benchmarks/bench_inference.py --configs cpu --compile   # + R&D with inference_compile=True
 """
 
@@ -38,15 +39,15 @@ from pathlib import Path
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
+import numpy as np
+import torch
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
-from lerobot.configs.types import FeatureType, PolicyFeature  # noqa: E402
-from lerobot.policies.utils import populate_queues  # noqa: E402
-from lerobot.utils.constants import OBS_IMAGES, OBS_STATE  # noqa: E402
+from lerobot.configs.types import FeatureType, PolicyFeature
+from lerobot.policies.utils import populate_queues
+from lerobot.utils.constants import OBS_IMAGES, OBS_STATE
 
 CAMERAS = ("observation.images.front", "observation.images.wrist")
 IMAGE_SIZE = (128, 128)
@@ -57,13 +58,14 @@ CHUNK = 8
 
 RND_CONFIGS = {
     "paper": {},  # RnDConfig defaults
-    "cpu": dict(dim_model=256, n_layers=4, n_heads=8),
+    "cpu": {"dim_model": 256, "n_layers": 4, "n_heads": 8},
 }
 
 
 def describe_rnd(name: str, cfg) -> str:
     return (
-        f"{name}: {cfg.variant}, {cfg.n_layers}L x {cfg.dim_model}, {cfg.n_heads} heads, patch {cfg.patch_size}, "
+        f"{name}: {cfg.variant}, {cfg.n_layers}L x {cfg.dim_model}, {cfg.n_heads} heads, "
+        f"patch {cfg.patch_size}, "
         f"{cfg.num_inference_steps} DDIM + {int(cfg.final_action_step)} final"
     )
 
@@ -90,7 +92,9 @@ def build_rnd(size: str, device: str, batch: int, embodiment_json: str, stats: s
     from lerobot_rnd.configuration_rnd import RnDConfig
     from lerobot_rnd.modeling_rnd import RnDPolicy
 
-    cfg = RnDConfig(device=device, embodiment=embodiment_json, inference_compile=compile_, **RND_CONFIGS[size])
+    cfg = RnDConfig(
+        device=device, embodiment=embodiment_json, inference_compile=compile_, **RND_CONFIGS[size]
+    )
     cfg.input_features, cfg.output_features = features()
     policy = RnDPolicy(cfg).to(device).eval()
     if stats == "toy":
@@ -98,8 +102,9 @@ def build_rnd(size: str, device: str, batch: int, embodiment_json: str, stats: s
         policy.model.action_stats.set(lo, -lo)
     g = torch.Generator().manual_seed(0)
     obs = {key: torch.rand(batch, N_OBS_STEPS, 3, *IMAGE_SIZE, generator=g).to(device) for key in CAMERAS}
-    state = torch.tensor([0.0, 0.0, 0.2, 1.0]) + torch.cat([0.03 * torch.randn(batch, 3, generator=g),
-                                                            torch.zeros(batch, 1)], dim=1)
+    state = torch.tensor([0.0, 0.0, 0.2, 1.0]) + torch.cat(
+        [0.03 * torch.randn(batch, 3, generator=g), torch.zeros(batch, 1)], dim=1
+    )
     obs[OBS_STATE] = state[:, None].repeat(1, N_OBS_STEPS, 1).to(device)
     noise = torch.randn(batch, cfg.chunk_size, 6, generator=g).to(device)
 
@@ -135,8 +140,13 @@ def build_dp(device: str, batch: int, scheduler: str, steps: int):
     # [n_obs_steps - 1, n_obs_steps - 1 + n_action_steps) of the horizon, so 8 executed actions with 2
     # observations need horizon >= 9 -> 16 (LeRobot's default).
     cfg = DiffusionConfig(
-        device=device, n_obs_steps=N_OBS_STEPS, horizon=16, n_action_steps=CHUNK,
-        noise_scheduler_type=scheduler, num_inference_steps=steps, pretrained_backbone_weights=None,
+        device=device,
+        n_obs_steps=N_OBS_STEPS,
+        horizon=16,
+        n_action_steps=CHUNK,
+        noise_scheduler_type=scheduler,
+        num_inference_steps=steps,
+        pretrained_backbone_weights=None,
     )
     cfg.input_features, cfg.output_features = features()
     policy = DiffusionPolicy(cfg).to(device).eval()
@@ -247,14 +257,24 @@ def run_device(device: str, args, embodiment_json: str) -> tuple[list[dict], lis
     entries = []  # (method, config, policy, call, params)
     print(f"\n[{device}] building policies ...", flush=True)
     act, act_call = build_act(device, args.batch)
-    entries.append(("ACT", f"chunk {CHUNK}, ResNet18, 4+1 enc layers + 1 dec, dim 512", act, act_call, n_params(act)))
+    entries.append(
+        ("ACT", f"chunk {CHUNK}, ResNet18, 4+1 enc layers + 1 dec, dim 512", act, act_call, n_params(act))
+    )
     dp, dp_call = build_dp(device, args.batch, "DDIM", 10)
-    entries.append(("Diffusion Policy", "DDIM 10 steps, U-Net (512,1024,2048), horizon 16", dp, dp_call,
-                    n_params(dp)))
+    entries.append(
+        ("Diffusion Policy", "DDIM 10 steps, U-Net (512,1024,2048), horizon 16", dp, dp_call, n_params(dp))
+    )
     if args.ddpm:
         dp100, dp100_call = build_dp(device, args.batch, "DDPM", 100)
-        entries.append(("Diffusion Policy", "DDPM 100 steps, U-Net (512,1024,2048), horizon 16", dp100,
-                        dp100_call, n_params(dp100)))
+        entries.append(
+            (
+                "Diffusion Policy",
+                "DDPM 100 steps, U-Net (512,1024,2048), horizon 16",
+                dp100,
+                dp100_call,
+                n_params(dp100),
+            )
+        )
     rnd_policies = {}
     for size in args.configs:
         pol, call = build_rnd(size, device, args.batch, embodiment_json, args.rnd_stats)
@@ -281,9 +301,17 @@ def run_device(device: str, args, embodiment_json: str) -> tuple[list[dict], lis
 
     results = []
     for i, (method, config, _, _, params) in enumerate(entries):
-        results.append({"method": method, "config": config, "device": device, "batch": args.batch,
-                        "params": params, **summarise(times[i]),
-                        "cpu_median_ms": 1e3 * statistics.median(cpu_times[i])})
+        results.append(
+            {
+                "method": method,
+                "config": config,
+                "device": device,
+                "batch": args.batch,
+                "params": params,
+                **summarise(times[i]),
+                "cpu_median_ms": 1e3 * statistics.median(cpu_times[i]),
+            }
+        )
     act_median = results[0]["median_ms"]
     for res in results:
         res["ratio_to_act"] = res["median_ms"] / act_median
@@ -314,9 +342,16 @@ def run_device(device: str, args, embodiment_json: str) -> tuple[list[dict], lis
                 sync(device)
                 ts.append(time.perf_counter() - t0)
                 cs.append(time.process_time() - c0)
-            res = {"method": "R&D-AI (inference_compile)", "config": describe_rnd(size, pol.config),
-                   "device": device, "batch": args.batch, "params": n_params(pol), "first_call_s": first,
-                   **summarise(ts), "cpu_median_ms": 1e3 * statistics.median(cs)}
+            res = {
+                "method": "R&D-AI (inference_compile)",
+                "config": describe_rnd(size, pol.config),
+                "device": device,
+                "batch": args.batch,
+                "params": n_params(pol),
+                "first_call_s": first,
+                **summarise(ts),
+                "cpu_median_ms": 1e3 * statistics.median(cs),
+            }
             res["ratio_to_act"] = res["median_ms"] / act_median
             results.append(res)
     return results, breakdowns
@@ -324,26 +359,34 @@ def run_device(device: str, args, embodiment_json: str) -> tuple[list[dict], lis
 
 def markdown(results: list[dict], breakdowns: list[dict]) -> str:
     lines = [
-        "| method | config | device | params | median ms | p90 ms | x ACT | process CPU ms |",
-        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: |",
+        (
+            "| method | config | device | params | median ms | p90 ms | min ms | x ACT (median) "
+            "| process CPU ms |"
+        ),
+        "| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
     ]
     for r in results:
         lines.append(
             f"| {r['method']} | {r['config']} | {r['device']} | {r['params'] / 1e6:.1f} M | "
-            f"{fmt_ms(r['median_ms'])} | {fmt_ms(r['p90_ms'])} | {r['ratio_to_act']:.1f} | "
+            f"{fmt_ms(r['median_ms'])} | {fmt_ms(r['p90_ms'])} | {fmt_ms(r['min_ms'])} | "
+            f"{r['ratio_to_act']:.1f} | "
             f"{fmt_ms(r['cpu_median_ms'])} |"
         )
     if any("first_call_s" in r for r in results):
         lines.append("")
         for r in results:
             if "first_call_s" in r:
-                lines.append(f"- {r['method']} {r['config'].split(':')[0]} ({r['device']}): first call "
-                             f"(compilation) {r['first_call_s']:.1f} s")
+                lines.append(
+                    f"- {r['method']} {r['config'].split(':')[0]} ({r['device']}): first call "
+                    f"(compilation) {r['first_call_s']:.1f} s"
+                )
     if breakdowns:
         lines += [
             "",
-            "| R&D config | device | render ms | network ms | SVD ms | other ms | total ms | calls per chunk "
-            "(render / network / SVD) |",
+            (
+                "| R&D config | device | render ms | network ms | SVD ms | other ms | total ms "
+                "| calls per chunk (render / network / SVD) |"
+            ),
             "| --- | --- | ---: | ---: | ---: | ---: | ---: | --- |",
         ]
         for b in breakdowns:
@@ -357,16 +400,26 @@ def markdown(results: list[dict], breakdowns: list[dict]) -> str:
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--device", choices=["cpu", "cuda"], default=None,
-                        help="default: cpu and cuda if CUDA is available, else cpu")
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--device",
+        choices=["cpu", "cuda"],
+        default=None,
+        help="default: cpu and cuda if CUDA is available, else cpu",
+    )
     parser.add_argument("--batch", type=int, default=1)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--warmup", type=int, default=1)
     parser.add_argument("--threads", type=int, default=None, help="torch.set_num_threads (default: torch's)")
     parser.add_argument("--configs", nargs="+", choices=list(RND_CONFIGS), default=["paper", "cpu"])
-    parser.add_argument("--rnd-stats", choices=["toy", "identity"], default="toy",
-                        help="R&D action range: toy = +-8 cm / +-0.3 rad, identity = untrained default +-1")
+    parser.add_argument(
+        "--rnd-stats",
+        choices=["toy", "identity"],
+        default="toy",
+        help="R&D action range: toy = +-8 cm / +-0.3 rad, identity = untrained default +-1",
+    )
     parser.add_argument("--ddpm", action="store_true", help="also time Diffusion Policy with DDPM, 100 steps")
     parser.add_argument("--compile", action="store_true", help="also time R&D with inference_compile=True")
     parser.add_argument("--no-breakdown", action="store_true")
@@ -405,8 +458,14 @@ def main(argv=None) -> None:
         "command": "python " + " ".join([os.path.relpath(__file__, REPO_ROOT), *(argv or sys.argv[1:])]),
         "machine": info,
         "args": vars(args),
-        "inputs": {"cameras": list(CAMERAS), "image_size": list(IMAGE_SIZE), "state_dim": STATE_DIM,
-                   "action_dim": ACTION_DIM, "n_obs_steps": N_OBS_STEPS, "chunk": CHUNK},
+        "inputs": {
+            "cameras": list(CAMERAS),
+            "image_size": list(IMAGE_SIZE),
+            "state_dim": STATE_DIM,
+            "action_dim": ACTION_DIM,
+            "n_obs_steps": N_OBS_STEPS,
+            "chunk": CHUNK,
+        },
         "results": all_results,
         "rnd_breakdown": all_breakdowns,
         "markdown": table,

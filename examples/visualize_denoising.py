@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Show how R&D denoises an action chunk, as gripper renders in the camera images (like Figure 8 of the paper).
+"""Show how R&D denoises an action chunk as gripper renders in the camera images (like the paper's Figure 8).
 
 Loads a policy (``--policy-path`` of a saved checkpoint, e.g. ``outputs/train/.../pretrained_model``; without
 it an untrained tiny R&D is built on the toy embodiment of ``tests/toy_data.py`` so the script runs anywhere),
@@ -16,8 +16,9 @@ the toy dataset generated on the fly), runs the sampler ``RnDModel.denoise(..., 
   cameras side by side.
 
     python examples/visualize_denoising.py                                  # untrained toy policy
-    python examples/visualize_denoising.py --policy-path outputs/quickstart/train/checkpoints/last/pretrained_model \\
-        --dataset-root outputs/quickstart/data --repo-id local/mw_reach --frame 20 --video outputs/denoising.mp4
+    python examples/visualize_denoising.py \\
+        --policy-path outputs/train/<run>/checkpoints/last/pretrained_model \\
+        --dataset-root data/<dataset> --repo-id local/<dataset> --frame 20 --video outputs/denoising.mp4
 """
 
 from __future__ import annotations
@@ -30,16 +31,16 @@ from pathlib import Path
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from PIL import Image, ImageDraw, ImageFont  # noqa: E402
+import numpy as np
+import torch
+from PIL import Image, ImageDraw, ImageFont
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
-from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE  # noqa: E402
+from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 
-from lerobot_rnd.geometry import pose_from_action  # noqa: E402
+from lerobot_rnd.geometry import pose_from_action
 
 TOY_REPO_ID = "local/toy_reach"
 BG = (255, 255, 255)
@@ -60,8 +61,16 @@ def build_toy_policy(dataset_root: Path, seed: int):
     torch.manual_seed(seed)
     meta = LeRobotDatasetMetadata(TOY_REPO_ID, root=dataset_root)
     feats = dataset_to_policy_features(meta.features)
-    cfg = RnDConfig(device="cpu", dim_model=64, n_layers=2, n_heads=4, image_size=(64, 64), chunk_size=8,
-                    n_action_steps=8, stats_num_samples=64)
+    cfg = RnDConfig(
+        device="cpu",
+        dim_model=64,
+        n_layers=2,
+        n_heads=4,
+        image_size=(64, 64),
+        chunk_size=8,
+        n_action_steps=8,
+        stats_num_samples=64,
+    )
     cfg.output_features = {k: f for k, f in feats.items() if f.type is FeatureType.ACTION}
     cfg.input_features = {k: f for k, f in feats.items() if k not in cfg.output_features}
     return RnDPolicy(cfg, dataset_meta=meta)
@@ -77,7 +86,8 @@ def load_frame(policy, root: Path, repo_id: str, index: int) -> dict:
     if missing:
         raise SystemExit(
             f"The dataset {root} has no {missing} (cameras: "
-            f"{[k for k in meta.features if k.startswith(OBS_IMAGES)]}): pass the dataset the policy was trained on "
+            f"{[k for k in meta.features if k.startswith(OBS_IMAGES)]}): pass the dataset the policy was "
+            "trained on "
             "with --dataset-root/--repo-id."
         )
     ds = LeRobotDataset(repo_id, root=root, delta_timestamps=resolve_delta_timestamps(policy.config, meta))
@@ -116,7 +126,9 @@ def run_sampler(policy, batch: dict, seed: int) -> dict:
         "demo": None,
     }
     if ACTION in batch and batch[ACTION].ndim == 3 and batch[ACTION].shape[1] == cfg.chunk_size:
-        T_ee_target, _ = model.action_adapter.to_rnd(batch[ACTION].float(), T_world_ee[:, -1], state=state[:, -1])
+        T_ee_target, _ = model.action_adapter.to_rnd(
+            batch[ACTION].float(), T_world_ee[:, -1], state=state[:, -1]
+        )
         out["demo"] = composite_for(T_ee_target)
     return out
 
@@ -159,7 +171,8 @@ def future_cell(composites: torch.Tensor, current: torch.Tensor, scale: int, sty
     """All T future renders of one camera over its current image.
 
     composites: (T, 3, h, w) network inputs of the future frames; current: (3, h, w) the camera image.
-    The render masks are where a composite differs from the camera image (composite = where(mask, render, image)).
+    The render masks are where a composite differs from the camera image
+    (composite = where(mask, render, image)).
     """
     t = composites.shape[0]
     base = upscale(to_hwc(current), scale)
@@ -206,8 +219,13 @@ def build_columns(res: dict, policy, scale: int, style: str) -> list[tuple[str, 
     current = images[-1]
     cams = range(current.shape[0])
     record = res["record"]
-    columns = [("observation", "current EE render", [current_cell(record[0][0, n_obs - 1, c], current[c], scale)
-                                                       for c in cams])]
+    columns = [
+        (
+            "observation",
+            "current EE render",
+            [current_cell(record[0][0, n_obs - 1, c], current[c], scale) for c in cams],
+        )
+    ]
     timesteps = list(model.inference_timesteps)
     n_ddim = len(timesteps)
     for i, comp in enumerate(record):
@@ -217,19 +235,36 @@ def build_columns(res: dict, policy, scale: int, style: str) -> list[tuple[str, 
         else:
             title, sub = "final pass", "input at k = 0"
         columns.append((title, sub, [future_cell(fut[:, c], current[c], scale, style) for c in cams]))
-    columns.append(("output a0", "predicted chunk", [future_cell(res["output"][0, n_obs:, c], current[c], scale, style)
-                                                      for c in cams]))
+    columns.append(
+        (
+            "output a0",
+            "predicted chunk",
+            [future_cell(res["output"][0, n_obs:, c], current[c], scale, style) for c in cams],
+        )
+    )
     if res["demo"] is not None:
-        columns.append(("demonstration", "dataset actions",
-                        [future_cell(res["demo"][0, n_obs:, c], current[c], scale, style) for c in cams]))
+        columns.append(
+            (
+                "demonstration",
+                "dataset actions",
+                [future_cell(res["demo"][0, n_obs:, c], current[c], scale, style) for c in cams],
+            )
+        )
     return columns
 
 
 LEGEND_NOTE = "(t+1 = first action of the chunk, drawn on top)"
 
 
-def draw_strip(columns, camera_names: list[str], t: int, cell: int, title: str, label_w: int | None = None,
-               note: bool = True) -> Image.Image:
+def draw_strip(
+    columns,
+    camera_names: list[str],
+    t: int,
+    cell: int,
+    title: str,
+    label_w: int | None = None,
+    note: bool = True,
+) -> Image.Image:
     """Grid of cells: a header per column (title, subtitle), a label per row, and the step-colour legend."""
     pad = max(4, cell // 40)
     font = get_font(max(13, cell // 13))
@@ -240,8 +275,12 @@ def draw_strip(columns, camera_names: list[str], t: int, cell: int, title: str, 
     legend_h = max(34, cell // 7)
     sw = max(18, cell // 10)
     n_cols, n_rows = len(columns), len(camera_names)
-    legend_w = (int(small.getlength("future step:")) + 2 * pad + t * (sw + 2)
-                + (2 * pad + int(small.getlength(LEGEND_NOTE)) if note else 0))
+    legend_w = (
+        int(small.getlength("future step:"))
+        + 2 * pad
+        + t * (sw + 2)
+        + (2 * pad + int(small.getlength(LEGEND_NOTE)) if note else 0)
+    )
     width = max(label_w + n_cols * (cell + pad) + pad, label_w + legend_w + 2 * pad)
     height = title_h + head_h + n_rows * (cell + pad) + legend_h + pad
     img = Image.new("RGB", (width, height), BG)
@@ -265,11 +304,18 @@ def draw_strip(columns, camera_names: list[str], t: int, cell: int, title: str, 
     x += int(small.getlength("future step:")) + 2 * pad
     for j in range(t):
         draw.rectangle([x, y0 + 4, x + sw, y0 + legend_h - 8], fill=tuple(colors[j]))
-        draw.text((x + sw / 2, y0 + legend_h / 2 - 2), f"{j + 1}", fill=(255, 255, 255) if j < t // 2 else FG,
-                  font=small, anchor="mm")
+        draw.text(
+            (x + sw / 2, y0 + legend_h / 2 - 2),
+            f"{j + 1}",
+            fill=(255, 255, 255) if j < t // 2 else FG,
+            font=small,
+            anchor="mm",
+        )
         x += sw + 2
     if note:
-        draw.text((x + 2 * pad, y0 + legend_h / 2 - 2), LEGEND_NOTE, fill=(90, 90, 90), font=small, anchor="lm")
+        draw.text(
+            (x + 2 * pad, y0 + legend_h / 2 - 2), LEGEND_NOTE, fill=(90, 90, 90), font=small, anchor="lm"
+        )
     return img
 
 
@@ -283,7 +329,9 @@ def write_video(columns, camera_names, t: int, cell: int, path: Path, seconds_pe
     for name, sub, cells in columns:
         # One frame per column of the strip, with the cameras side by side.
         per_camera = [(cam, "", [c]) for cam, c in zip(camera_names, cells, strict=True)]
-        frames.append(np.asarray(draw_strip(per_camera, [""], t, cell, f"{name}: {sub}", label_w=8, note=False)))
+        frames.append(
+            np.asarray(draw_strip(per_camera, [""], t, cell, f"{name}: {sub}", label_w=8, note=False))
+        )
     h = max(f.shape[0] for f in frames)
     w = max(f.shape[1] for f in frames)
     h, w = -(-h // 16) * 16, -(-w // 16) * 16  # codec-friendly size
@@ -306,16 +354,28 @@ def write_video(columns, camera_names, t: int, cell: int, path: Path, seconds_pe
 
 
 def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--policy-path", default=None, help="saved checkpoint dir (pretrained_model); default: "
-                        "an untrained tiny policy on the toy embodiment")
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--policy-path",
+        default=None,
+        help="saved checkpoint dir (pretrained_model); default: "
+        "an untrained tiny policy on the toy embodiment",
+    )
     parser.add_argument("--dataset-root", default=None, help="LeRobot dataset root (default: a toy dataset)")
-    parser.add_argument("--repo-id", default=None, help="dataset repo id (default: the folder name under local/)")
+    parser.add_argument(
+        "--repo-id", default=None, help="dataset repo id (default: the folder name under local/)"
+    )
     parser.add_argument("--frame", type=int, default=4, help="dataset frame index")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the initial noise (and of the toy policy)")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="seed of the initial noise (and of the toy policy)"
+    )
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--style", choices=["overlay", "textured"], default="overlay")
-    parser.add_argument("--cell", type=int, default=256, help="displayed size of one image in pixels (approx.)")
+    parser.add_argument(
+        "--cell", type=int, default=256, help="displayed size of one image in pixels (approx.)"
+    )
     parser.add_argument("--out", default="outputs/denoising.png")
     parser.add_argument("--video", default=None, help="also write a video: path ending in .mp4 or .gif")
     parser.add_argument("--seconds-per-frame", type=float, default=1.0)
@@ -326,15 +386,22 @@ def main(argv=None) -> None:
             from tests.toy_data import record_toy_dataset
 
             print("recording the toy dataset ...")
-            root = record_toy_dataset(Path(tmp) / "toy_reach", n_episodes=2, episode_len=16, repo_id=TOY_REPO_ID)
+            root = record_toy_dataset(
+                Path(tmp) / "toy_reach", n_episodes=2, episode_len=16, repo_id=TOY_REPO_ID
+            )
             repo_id = TOY_REPO_ID
         else:
             root = Path(args.dataset_root)
             repo_id = args.repo_id or f"local/{root.name}"
         if args.policy_path is None:
-            print("building an untrained tiny R&D-AI on the toy embodiment (pass --policy-path for a trained one)")
+            print(
+                "building an untrained tiny R&D-AI on the toy embodiment "
+                "(pass --policy-path for a trained one)"
+            )
             if args.dataset_root is not None:
-                raise SystemExit("--dataset-root needs --policy-path (the toy policy only fits the toy dataset).")
+                raise SystemExit(
+                    "--dataset-root needs --policy-path (the toy policy only fits the toy dataset)."
+                )
             policy = build_toy_policy(root, args.seed)
             title_policy = "untrained toy R&D-AI"
         else:
@@ -351,8 +418,10 @@ def main(argv=None) -> None:
     scale = max(1, round(args.cell / max(h, w)))
     columns = build_columns(res, policy, scale, args.style)
     cams = [k.removeprefix(f"{OBS_IMAGES}.") for k in cfg.image_features]
-    title = (f"R&D-{cfg.variant} denoising - {title_policy} - frame {args.frame}, noise seed {args.seed}, "
-             f"T = {cfg.chunk_size}")
+    title = (
+        f"R&D-{cfg.variant} denoising - {title_policy} - frame {args.frame}, noise seed {args.seed}, "
+        f"T = {cfg.chunk_size}"
+    )
     strip = draw_strip(columns, cams, cfg.chunk_size, scale * max(h, w), title)
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -362,7 +431,9 @@ def main(argv=None) -> None:
     print("a0 (normalised, first 3 steps):", np.round(res["a0"][0, :3].cpu().numpy(), 3).tolist())
     print("gripper (+1 closed):", grip)
     if args.video:
-        write_video(columns, cams, cfg.chunk_size, scale * max(h, w), Path(args.video), args.seconds_per_frame)
+        write_video(
+            columns, cams, cfg.chunk_size, scale * max(h, w), Path(args.video), args.seconds_per_frame
+        )
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Dataset ``action`` <-> R&D action chunk, and the min/max normaliser of R&D actions.
+"""Dataset ``action`` <-> R&D action chunk.
 
 An R&D action chunk for one sample (see ``docs/DESIGN.md``) is
 
@@ -31,12 +31,12 @@ is passed through unchanged. With ``gripper=False`` the dataset action has no gr
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, ClassVar
 
 import torch
-from torch import Tensor, nn
+from torch import Tensor
 
 from lerobot_rnd.geometry import (
     action_from_pose,
@@ -61,8 +61,6 @@ __all__ = [
     "make_action_adapter",
     "chunk_to_vector",
     "vector_to_chunk",
-    "MinMaxNormalizer",
-    "estimate_rnd_action_stats",
 ]
 
 
@@ -811,153 +809,3 @@ def make_action_adapter(name: str, **kwargs: Any) -> ActionAdapter:
     if name not in ACTION_ADAPTERS:
         raise ValueError(f"unknown action adapter {name!r}; choose one of {sorted(ACTION_ADAPTERS)}")
     return ACTION_ADAPTERS[name](**kwargs)
-
-
-# --------------------------------------------------------------------------------------
-# normalisation
-# --------------------------------------------------------------------------------------
-
-
-class MinMaxNormalizer(nn.Module):
-    """Maps ``[min, max]`` to ``[-1, 1]`` per feature; state lives in the buffers ``min``/``max``.
-
-    Buffers have shape ``(D,)`` (shared over the horizon) or ``(T, D)`` (per horizon step) and
-    broadcast against ``(..., D)`` / ``(..., T, D)`` inputs. ``normalize(x) = (x - c) / h`` with
-    centre ``c = (max + min) / 2`` and half-range ``h = max((max - min) / 2, eps)``: a feature
-    with ``min == max`` maps its constant value to 0 and stays finite. Loading a state dict
-    with other buffer shapes (e.g. per-horizon stats) resizes the buffers.
-    """
-
-    def __init__(
-        self,
-        min: Tensor | Sequence | None = None,
-        max: Tensor | Sequence | None = None,
-        *,
-        shape: int | Sequence[int] | None = None,
-        eps: float = 1e-6,
-    ):
-        super().__init__()
-        self.eps = float(eps)
-        if min is None and max is None:
-            if shape is None:
-                raise ValueError("give min and max, or a shape (identity normaliser)")
-            shape = (shape,) if isinstance(shape, int) else tuple(shape)
-            mn, mx = -torch.ones(shape), torch.ones(shape)
-        elif min is None or max is None:
-            raise ValueError("give both min and max")
-        else:
-            mn, mx = self._validated(min, max)
-        self.register_buffer("min", mn.float().clone())
-        self.register_buffer("max", mx.float().clone())
-
-    @staticmethod
-    def _validated(min: Any, max: Any) -> tuple[Tensor, Tensor]:
-        mn = torch.as_tensor(min).detach().float()
-        mx = torch.as_tensor(max).detach().float()
-        if mn.shape != mx.shape or mn.ndim not in (1, 2):
-            raise ValueError(
-                "min and max must have the same shape (D,) or (T, D), "
-                f"got {tuple(mn.shape)}, {tuple(mx.shape)}"
-            )
-        _check_finite(mn, "min")
-        _check_finite(mx, "max")
-        if bool((mn > mx).any()):
-            raise ValueError("min must be <= max everywhere")
-        return mn, mx
-
-    @classmethod
-    def fit(cls, x: Tensor, per_horizon: bool = False, eps: float = 1e-6) -> MinMaxNormalizer:
-        """Stats from data ``x`` (..., D) (or (..., T, D) with ``per_horizon``)."""
-        x = _as_float(x, "x").detach()
-        _check_finite(x, "x")
-        if per_horizon:
-            if x.ndim < 2:
-                raise ValueError("per_horizon fit needs x of shape (..., T, D)")
-            flat = x.reshape(-1, *x.shape[-2:])
-        else:
-            flat = x.reshape(-1, x.shape[-1])
-        if flat.shape[0] == 0:
-            raise ValueError("cannot fit a normaliser on empty data")
-        return cls(flat.amin(dim=0), flat.amax(dim=0), eps=eps)
-
-    def load_stats(self, min: Any, max: Any) -> MinMaxNormalizer:
-        """Replace the statistics in place (buffers may change shape)."""
-        mn, mx = self._validated(min, max)
-        self.min = mn.to(self.min.device)
-        self.max = mx.to(self.max.device)
-        return self
-
-    def _load_from_state_dict(self, state_dict, prefix, *args, **kwargs):
-        for name in ("min", "max"):
-            key = prefix + name
-            if key in state_dict and state_dict[key].shape != getattr(self, name).shape:
-                setattr(self, name, torch.empty_like(state_dict[key], device=getattr(self, name).device))
-        super()._load_from_state_dict(state_dict, prefix, *args, **kwargs)
-
-    def _center_half(self, x: Tensor) -> tuple[Tensor, Tensor]:
-        mn = self.min.to(device=x.device, dtype=x.dtype)
-        mx = self.max.to(device=x.device, dtype=x.dtype)
-        return (mx + mn) * 0.5, ((mx - mn) * 0.5).clamp_min(self.eps)
-
-    def normalize(self, x: Tensor) -> Tensor:
-        c, h = self._center_half(x)
-        return (x - c) / h
-
-    def unnormalize(self, x: Tensor) -> Tensor:
-        c, h = self._center_half(x)
-        return x * h + c
-
-    def forward(self, x: Tensor) -> Tensor:
-        return self.normalize(x)
-
-    def extra_repr(self) -> str:
-        return f"shape={tuple(self.min.shape)}, eps={self.eps:g}"
-
-
-def estimate_rnd_action_stats(
-    samples: Iterable[Any],
-    adapter: ActionAdapter,
-    per_horizon: bool = False,
-    max_samples: int | None = None,
-    action_key: str = "action",
-    pose_key: str = "T_world_ee",
-    state_key: str = "state",
-) -> dict[str, Any]:
-    """Min/max of the 6-D R&D actions ``[t, rotvec]`` over a dataset.
-
-    ``samples`` yields ``(action (..., T, A), T_world_ee (..., 4, 4))`` or
-    ``(action, T_world_ee, state)`` tuples, or mappings with ``action_key``/``pose_key`` (and
-    optionally ``state_key``); a leading batch dim is allowed. Stats are over all horizon steps
-    jointly (shape (6,)) or, with ``per_horizon``, per step (shape (T, 6)). ``max_samples``
-    caps the number of items consumed. Returns ``{"min", "max", "count"}`` (count = chunks).
-    """
-    mn = mx = None
-    count = 0
-    for i, item in enumerate(samples):
-        if max_samples is not None and i >= max_samples:
-            break
-        if isinstance(item, Mapping):
-            action, pose, state = item[action_key], item[pose_key], item.get(state_key)
-        else:
-            item = tuple(item)
-            if len(item) not in (2, 3):
-                raise ValueError("samples must yield (action, T_world_ee) or (action, T_world_ee, state)")
-            action, pose, state = item[0], item[1], item[2] if len(item) == 3 else None
-        T_ee_target, g = adapter.to_rnd(action, pose, state)
-        v = chunk_to_vector(T_ee_target, g)[..., :6].detach()
-        v = v.reshape(-1, *v.shape[-2:]).double()
-        if per_horizon:
-            bmin, bmax = v.amin(dim=0), v.amax(dim=0)
-            if mn is not None and bmin.shape != mn.shape:
-                raise ValueError(
-                    f"per-horizon stats need a fixed horizon; got {bmin.shape[0]} after {mn.shape[0]}"
-                )
-        else:
-            bmin, bmax = v.reshape(-1, 6).amin(dim=0), v.reshape(-1, 6).amax(dim=0)
-        bmin, bmax = bmin.cpu(), bmax.cpu()
-        mn = bmin if mn is None else torch.minimum(mn, bmin)
-        mx = bmax if mx is None else torch.maximum(mx, bmax)
-        count += v.shape[0]
-    if mn is None:
-        raise ValueError("no samples to estimate R&D action statistics from")
-    return {"min": mn.float(), "max": mx.float(), "count": count}

@@ -1567,6 +1567,26 @@ def metaworld_action_adapter() -> dict[str, Any]:
     return {"type": "ee_position_delta", "scale": 0.01, "clip": True, "clip_limit": 1.0}
 
 
+def panda_robotiq_embodiment(
+    camera_names: Sequence[str] = ("front", "wrist"),
+    image_size: tuple[int, int] = (128, 128),
+    max_faces: int | None = None,
+) -> Embodiment:
+    """Franka Panda + Robotiq 2F-85 of this package's ``gym_rnd_panda`` envs / ``lerobot-rnd-record
+    --suite panda`` datasets (``lerobot_rnd.sim.panda_env``; needs gym-hil's assets).
+
+    Cameras ``front`` (static) and ``wrist`` (rigid on the hand, fingers-only mesh) from MuJoCo; EE frame =
+    site ``pinch``; state [ee xyz, quat wxyz, gripper opening (1 open, 0 closed)]; action adapter
+    ``ee_delta`` (world frame, 0.02 m / 0.1 rad per unit, clipped to [-1, 1]). ``max_faces`` defaults to
+    ``panda_env.GRIPPER_MESH_FACES``.
+    """
+    from lerobot_rnd.sim.panda_env import GRIPPER_MESH_FACES, panda_embodiment
+
+    return panda_embodiment(
+        tuple(camera_names), tuple(image_size), max_faces=GRIPPER_MESH_FACES if max_faces is None else max_faces
+    )
+
+
 #: Named embodiments for ``--policy.embodiment=<name>`` (``load_embodiment``).
 EMBODIMENT_PRESETS: dict[str, Any] = {
     # this package's gym_rnd_metaworld env / lerobot-rnd-record datasets (default settings)
@@ -1579,6 +1599,8 @@ EMBODIMENT_PRESETS: dict[str, Any] = {
         state_layout="pos_grip",
         camera_keys={"corner2": "observation.image"},
     ),
+    # this package's gym_rnd_panda envs / lerobot-rnd-record --suite panda datasets (gym-hil's assets)
+    "panda_robotiq": lambda: panda_robotiq_embodiment(),
 }
 
 

@@ -28,7 +28,7 @@ from lerobot_rnd.embodiment_binding import (
 )
 from lerobot_rnd.geometry import action_from_pose, invert_transform, pose_from_action
 from lerobot_rnd.network import RnDDenoiser
-from lerobot_rnd.rendering import render
+from lerobot_rnd.rendering import Rasterizer
 from lerobot_rnd.sampler import (
     ddim_step,
     displacement_target,
@@ -202,6 +202,21 @@ class RnDModel(nn.Module):
         self.register_buffer("inference_alpha_bar", alpha_bar, persistent=False)
         self.register_buffer("inference_alpha_bar_prev", alpha_bar_prev, persistent=False)
         self._compiled_sampler = None
+        self._static_render = False
+        self._render_overflow = torch.zeros((), dtype=torch.bool)
+        self._rasterizers: dict = {}
+        # Rasterizers hold copies of the mesh buffers: rebuild them after a checkpoint is loaded.
+        self.meshes.register_load_state_dict_post_hook(lambda module, keys: self._rasterizers.clear())
+
+    def rasterizer(self, static: bool = False) -> Rasterizer:
+        """The rasteriser for the model's meshes, image size and device (built once, cached)."""
+        device = self.meshes.vertices.device
+        key = (self.config.render_texture, str(device), static)
+        if key not in self._rasterizers:
+            self._rasterizers[key] = Rasterizer(
+                self.meshes.mesh_batch(self.config.render_texture), self.config.image_size, device=device
+            )
+        return self._rasterizers[key]
 
     def _check_action_dim(self) -> None:
         dataset_dim = self.config.action_feature.shape[0]
@@ -257,14 +272,16 @@ class RnDModel(nn.Module):
         T_world_cam = self.rig.T_world_cam(T_world_ee_images)  # (B, F, C, 4, 4)
         T_cam_obj = invert_transform(T_world_cam) @ T_world_ee_frames[:, :, None]
         n = b * f * c
+        static = self._static_render
         with torch.autocast(device_type=T_cam_obj.device.type, enabled=False):
-            out = render(
-                self.meshes.mesh_batch(self.config.render_texture),
+            out = self.rasterizer(static)(
                 self.rig.mesh_index.expand(b, f, c).reshape(n),
                 T_cam_obj.reshape(n, 4, 4).float(),
                 self.rig.K.expand(b, f, c, 3, 3).reshape(n, 3, 3),
-                self.config.image_size,
+                dynamic=not static,
             )
+        if static:
+            self._render_overflow = out.overflow.any() | self._render_overflow
         h, w = self.config.image_size
         return (
             out.rgb.reshape(b, f, c, 3, h, w),
@@ -408,6 +425,27 @@ class RnDModel(nn.Module):
             a = (a + update).clamp(-1, 1)
         return a, logits
 
+    def _denoise_compiled(self, images, T_world_ee, gripper, noise):
+        """`denoise` compiled with `torch.compile` (CUDA graphs on GPU) over static-shape rendering.
+
+        The static rasteriser has fixed triangle capacities; if a render overflows them (a gripper far larger
+        on screen than usual), the chunk is recomputed eagerly with the exact renderer, so nothing is lost.
+        """
+        if self._compiled_sampler is None:
+            mode = "reduce-overhead" if images.device.type == "cuda" else "default"
+            self._compiled_sampler = torch.compile(self.denoise, mode=mode, dynamic=False)
+        self._static_render = True
+        self._render_overflow = torch.zeros((), dtype=torch.bool, device=images.device)
+        try:
+            a, logits = self._compiled_sampler(images, T_world_ee, gripper, noise)
+            overflow = bool(self._render_overflow)
+        finally:
+            self._static_render = False
+        if overflow:
+            logger.warning("Static rendering overflowed its triangle capacity; recomputing this chunk eagerly.")
+            a, logits = self.denoise(images, T_world_ee, gripper, noise)
+        return a.clone(), logits.clone()
+
     @torch.no_grad()
     def generate_actions(self, images: Tensor, state: Tensor, noise: Tensor | None = None) -> Tensor:
         """images (B, H, C, 3, h0, w0), state (B, H, D) -> dataset actions (B, chunk_size, action_dim)."""
@@ -416,13 +454,10 @@ class RnDModel(nn.Module):
         b = images.shape[0]
         if noise is None:
             noise = torch.randn(b, self.config.chunk_size, 6, device=images.device)
-        sampler = self.denoise
         if self.config.inference_compile:
-            if self._compiled_sampler is None:
-                self._compiled_sampler = torch.compile(self.denoise, mode="max-autotune-no-cudagraphs"
-                                                       if images.device.type == "cpu" else "reduce-overhead")
-            sampler = self._compiled_sampler
-        a, logits = sampler(images, T_world_ee, gripper, noise)
+            a, logits = self._denoise_compiled(images, T_world_ee, gripper, noise)
+        else:
+            a, logits = self.denoise(images, T_world_ee, gripper, noise)
         T_ee_target = pose_from_action(self.action_stats.unnormalize(a))
         gripper_action = torch.where(logits > 0, 1.0, -1.0)
         return self.action_adapter.from_rnd(T_ee_target, gripper_action, T_world_ee[:, -1], state=state[:, -1])

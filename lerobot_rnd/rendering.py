@@ -80,9 +80,9 @@ _F_B = slice(8, 11)  # d lam_k / dv
 _F_IB = 11  # d(1/z)/dv
 _F_U0, _F_V0 = 12, 13  # box origin (small integers stored exactly)
 _NF = 14
-# rows of the per-triangle int64 table (5, P)
-_I_ROWBASE, _I_ULO, _I_W, _I_H, _I_S = 0, 1, 2, 3, 4  # rowbase = n*H*W + v_lo*W
-_NI = 5
+# rows of the per-triangle int64 table (4, P)
+_I_PIX, _I_W, _I_H, _I_S = 0, 1, 2, 3  # flat pixel of the box origin n*H*W + v_lo*W + u_lo, box w, h, span
+_NI = 4
 
 
 def _as_tensor(x, dtype, device=None) -> Tensor:
@@ -388,26 +388,26 @@ class Rasterizer:
         return dict(u_lo=u_lo, v_lo=v_lo, w=w, h=h, dv=vmax - vmin, ok=ok, front=area2 < 0, in_front=in_front, zmax=zmax)
 
     def _int_table(self, n: Tensor, u_lo, v_lo, w, h, s, out: Tensor | None = None) -> Tensor:
-        """(5, P) int64 rows: rowbase = n*H*W + v_lo*W, u_lo, w, h, span (the last three >= 1)."""
+        """(4, P) int64 rows: n*H*W + v_lo*W + u_lo, w, h, span (the last three >= 1)."""
         P = u_lo.shape[0]
-        tmp = torch.stack([v_lo, u_lo, w, h, s], 0)
-        tmp[2:].clamp_(min=1)
+        tmp = torch.stack([v_lo * self.W + u_lo, w, h, s], 0)  # exact in float32 (< 2^24)
+        tmp[1:].clamp_(min=1)
         tmp = torch.nan_to_num_(tmp, nan=1.0)
-        tabi = torch.empty(5, P, dtype=torch.int64, device=self.device) if out is None else out
+        tabi = torch.empty(_NI, P, dtype=torch.int64, device=self.device) if out is None else out
         tabi.copy_(tmp)
-        tabi[0].mul_(self.W).add_(n * (self.H * self.W))
+        tabi[0].add_(n * (self.H * self.W))
         return tabi
 
     def _screen_tables(self, u, v, z, u_lo, v_lo, w, h, dv, n, out_f=None, out_i=None):
         """Plane functions of triangles entirely in front of the near plane: screen-space
         edge functions relative to the box origin divided by (2 area z_k), float32.
-        u, v, z (3, P); box (P,) each; n (P,) render index. Returns tabf (14,P), tabi (5,P)."""
+        u, v, z (3, P); box (P,) each; n (P,) render index. Returns tabf (14,P), tabi (4,P)."""
         x = u - u_lo
         y = v - v_lo
         x0, x1, x2 = x.unbind(0)
         y0, y1, y2 = y.unbind(0)
         e = torch.stack([x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0], 0)  # edge fns at origin
-        area2 = e.sum(0)
+        area2 = e[0] + e[1] + e[2]
         sig = (1.0 / area2) / z  # (3,P)
         lam0 = e * sig
         A = (v.roll(-1, 0) - v.roll(-2, 0)) * sig
@@ -415,7 +415,8 @@ class Rasterizer:
         # widest row = 2 area / height; pixel centres in it <= floor(width) + 1
         span = torch.floor(area2.abs() / dv.clamp_min(1e-12) + _SPAN_MARGIN).clamp_(max=1e8).add_(1)
         span = torch.minimum(span, w)
-        rows = [lam0, A, lam0.sum(0, keepdim=True), A.sum(0, keepdim=True), B, B.sum(0, keepdim=True), u_lo[None], v_lo[None]]
+        tot = lambda x: (x[0] + x[1] + x[2])[None]  # noqa: E731
+        rows = [lam0, A, tot(lam0), tot(A), B, tot(B), u_lo[None], v_lo[None]]
         tabf = torch.cat(rows, 0, out=out_f) if out_f is not None else torch.cat(rows, 0)
         tabi = self._int_table(n, u_lo, v_lo, w, h, span, out=out_i)
         return tabf, tabi
@@ -423,7 +424,7 @@ class Rasterizer:
     def _setup_2dh(self, vc: Tensor, K: Tensor, n: Tensor):
         """Homogeneous setup (float64) for triangles that may cross the near plane.
         vc (P,3 vertices,3) camera frame, K (P,3,3), n (P,) render index. Returns tabf
-        (14,P), tabi (5,P) (span = box width), ok, front."""
+        (14,P), tabi (4,P) (span = box width), ok, front."""
         vc = vc.double()
         K = K.double()
         near = self.near
@@ -476,14 +477,16 @@ class Rasterizer:
 
     # ------------------------------------------------------------------ raster
     def _raster(self, zbuf, tabf, tabi, tid, slot_ok, R: int, S: int, near_test: bool):
-        """Rasterise table columns ``tid`` (C,) with R x S candidate blocks into zbuf."""
+        """Rasterise table columns ``tid`` (C,) with R x S candidate blocks into zbuf.
+        Layout: the triangle axis is innermost, (R, S, c), so that the elementwise ops run
+        vectorised over triangles whatever R and S are."""
         C = tid.shape[0]
         if C == 0:
             return
         W = self.W
         izmax = 1.0 / self.near
-        arR, arS = self._ar[R], self._ar[S]
-        jf, if_ = self._arf[R], self._arf[S]
+        arR, arS = self._ar[R][:, None], self._ar[S][:, None]  # (R,1), (S,1)
+        jf, if_ = self._arf[R][:, None], self._arf[S][:, None]
         step = max(1, self.chunk_candidates // (R * S))
         if R == 1 and S == 1:
             for c0 in range(0, C, step):
@@ -493,53 +496,54 @@ class Rasterizer:
         for c0 in range(0, C, step):
             t = tid[c0 : c0 + step]
             rf = tabf.index_select(1, t)  # (14,c)
-            ri = tabi.index_select(1, t)  # (5,c)
-            A = rf[_F_A, :, None]  # (3,c,1)
-            wv, hv, sv = ri[_I_W, :, None], ri[_I_H, :, None], ri[_I_S, :, None]  # (c,1)
+            ri = tabi.index_select(1, t)  # (4,c)
+            A = rf[_F_A, None, :]  # (3,1,c)
+            Bv = rf[_F_B, None, :]
+            wv, hv, sv = ri[_I_W], ri[_I_H], ri[_I_S]  # (c,)
             # per row j: first pixel right of the crossings of the edges whose lam grows with u
-            lrow = rf[_F_LAM0, :, None] + rf[_F_B, :, None] * jf  # (3,c,R): lam at (u_lo, v_lo + j)
+            lrow = rf[_F_LAM0, None, :] + Bv * jf  # (3,R,c): lam at (u_lo, v_lo + j)
             pos = A > 1e-20
             lbk = torch.where(pos, lrow / torch.where(pos, -A, torch.ones_like(A)), -_INF)
-            lb = torch.maximum(torch.maximum(lbk[0], lbk[1]), lbk[2])  # (c,R)
+            lb = torch.maximum(torch.maximum(lbk[0], lbk[1]), lbk[2])  # (R,c)
             start = torch.ceil(lb - _START_MARGIN).clamp_(min=0)
             start = torch.minimum(start, (wv - sv).to(torch.float32))  # offset from u_lo
-            tol = (A.abs() + rf[_F_B, :, None].abs()) * _TOL  # ~1e-4 px margin: watertight shared edges
-            rho = lrow + A * start + tol  # (3,c,R) lam at the row start
-            rbad = arR >= hv
+            tol = (A.abs() + Bv.abs()) * _TOL  # ~1e-4 px margin: watertight shared edges
+            rho = lrow + A * start + tol  # (3,R,c) lam at the row start
+            rbad = arR >= hv  # (R,c)
             if slot_ok is not None:
-                rbad = rbad | ~slot_ok[c0 : c0 + step, None]
+                rbad = rbad | ~slot_ok[c0 : c0 + step]
             rho[0] = torch.where(rbad, -_INF, rho[0])
-            colA = A * if_  # (3,c,S)
+            colA = A * if_  # (3,S,c)
             colA[0] = torch.where(arS >= sv, -_INF, colA[0])
-            izr = rf[_F_IZ0, :, None] + rf[_F_IB, :, None] * jf + rf[_F_IA, :, None] * start  # (c,R)
-            izc = rf[_F_IA, :, None] * if_  # (c,S)
-            rowpix = (ri[_I_ROWBASE] + ri[_I_ULO])[:, None] + torch.minimum(arR, hv - 1) * W + start.to(torch.int64)
-            colpix = torch.minimum(arS, sv - 1)
-            # candidates (c, R, S)
-            l0 = rho[0, :, :, None] + colA[0, :, None, :]
-            l1 = rho[1, :, :, None] + colA[1, :, None, :]
+            izr = rf[_F_IZ0] + rf[_F_IB] * jf + rf[_F_IA] * start  # (R,c)
+            izc = rf[_F_IA] * if_  # (S,c)
+            rowpix = ri[_I_PIX] + torch.minimum(arR, hv - 1) * W + start.to(torch.int64)  # (R,c)
+            colpix = torch.minimum(arS, sv - 1)  # (S,c)
+            # candidates (R, S, c)
+            l0 = rho[0, :, None] + colA[0, None]
+            l1 = rho[1, :, None] + colA[1, None]
             torch.minimum(l0, l1, out=l0)
-            torch.add(rho[2, :, :, None], colA[2, :, None, :], out=l1)
+            torch.add(rho[2, :, None], colA[2, None], out=l1)
             torch.minimum(l0, l1, out=l0)
-            iz = izr[:, :, None] + izc[:, None, :]
+            iz = izr[:, None] + izc[None]
             if near_test:
                 torch.neg(iz, out=l1).add_(izmax)
                 torch.minimum(l0, l1, out=l0)
             iz = torch.where(l0 >= 0, iz, 0.0)
-            key = torch.add(t[:, None, None], iz.view(torch.int32).to(torch.int64), alpha=_KEY_SHIFT)
-            pix = rowpix[:, :, None] + colpix[:, None, :]
+            key = torch.add(t, iz.view(torch.int32).to(torch.int64), alpha=_KEY_SHIFT)
+            pix = rowpix[:, None] + colpix[None]
             zbuf.scatter_reduce_(0, pix.view(-1), key.view(-1), reduce="amax", include_self=True)
 
     def _raster_1x1(self, zbuf, tabf, tabi, t, slot_ok, near_test: bool):
         """Triangles with one row and at most one pixel centre per row."""
         rf = tabf[:11].index_select(1, t)  # lam0 (3), A (3), iz0, iA, B (3)
-        ri = tabi[:3].index_select(1, t)  # rowbase, u_lo, w
+        ri = tabi[:2].index_select(1, t)  # pixbase, w
         lam0, A = rf[0:3], rf[3:6]
         tol = (A.abs() + rf[8:11].abs()) * _TOL
         pos = A > 1e-20
         lbk = torch.where(pos, lam0 / torch.where(pos, -A, torch.ones_like(A)), -_INF)
         lb = torch.maximum(torch.maximum(lbk[0], lbk[1]), lbk[2])
-        start = torch.minimum(torch.ceil(lb - _START_MARGIN).clamp_(min=0), (ri[2] - 1).to(torch.float32))
+        start = torch.minimum(torch.ceil(lb - _START_MARGIN).clamp_(min=0), (ri[1] - 1).to(torch.float32))
         rho = lam0 + A * start + tol
         m = torch.minimum(torch.minimum(rho[0], rho[1]), rho[2])
         iz = rf[6] + rf[7] * start
@@ -550,7 +554,7 @@ class Rasterizer:
             ok = ok & slot_ok
         iz = torch.where(ok, iz, 0.0)
         key = torch.add(t, iz.view(torch.int32).to(torch.int64), alpha=_KEY_SHIFT)
-        pix = ri[0] + ri[1] + start.to(torch.int64)
+        pix = ri[0] + start.to(torch.int64)
         zbuf.scatter_reduce_(0, pix, key, reduce="amax", include_self=True)
 
     # ------------------------------------------------------------------ resolve
@@ -640,7 +644,6 @@ class Rasterizer:
         return vc, gid, fvalid, u, v, z
 
     def _raster_dynamic(self, mesh_index, T_cam_obj, K):
-        dev = self.device
         N = mesh_index.shape[0]
         F = self.meshes.num_faces
         vc, gid, fvalid, u, v, z = self._vertex_data(mesh_index, T_cam_obj, K)
@@ -676,7 +679,9 @@ class Rasterizer:
             if count == 0:
                 continue
             cell = self._grid_cell(tabi[:, start : start + count])
-            cell, order = torch.sort(cell, stable=True)
+            small = torch.uint8 if self._nr * self._ns <= 256 else torch.int16  # sorts faster
+            cell, order = torch.sort(cell.to(small), stable=True)
+            cell = cell.to(torch.int64)
             counts = torch.bincount(cell, minlength=self._nr * self._ns).tolist()
             cols = order + start
             pos = 0

@@ -16,9 +16,7 @@ from lerobot_rnd.action_adapters import (
     EEDeltaAdapter,
     EEPositionDeltaAdapter,
     JointPositionAdapter,
-    MinMaxNormalizer,
     chunk_to_vector,
-    estimate_rnd_action_stats,
     make_action_adapter,
     vector_to_chunk,
 )
@@ -366,59 +364,6 @@ def test_validation_errors():
         ad.from_rnd(T, torch.ones(8), torch.eye(4))
     with pytest.raises(ValueError, match="frame"):
         EEDeltaAdapter(frame="base")
-
-
-# ------------------------------------------------------------------ normaliser and stats
-
-
-def test_minmax_normalizer():
-    x = torch.randn(100, 6) * torch.tensor([1.0, 2.0, 0.1, 5.0, 0.5, 1.0]) + 3.0
-    x[:, 5] = 0.25  # constant feature: zero range
-    norm = MinMaxNormalizer.fit(x)
-    y = norm.normalize(x)
-    assert torch.isfinite(y).all()
-    torch.testing.assert_close(y[:, :5].amin(0), -torch.ones(5))
-    torch.testing.assert_close(y[:, :5].amax(0), torch.ones(5))
-    torch.testing.assert_close(y[:, 5], torch.zeros(100))
-    torch.testing.assert_close(norm.unnormalize(y), x)
-    z = norm.unnormalize(torch.rand(10, 6) * 2 - 1)
-    assert torch.isfinite(z).all() and (z[:, 5] - 0.25).abs().max() < 1e-5
-    # per-horizon statistics
-    xh = torch.randn(50, 8, 6) * torch.arange(1, 9, dtype=torch.float32)[:, None]
-    nh = MinMaxNormalizer.fit(xh, per_horizon=True)
-    assert nh.min.shape == (8, 6)
-    yh = nh(xh)
-    torch.testing.assert_close(yh.amin(0), -torch.ones(8, 6))
-    torch.testing.assert_close(yh.amax(0), torch.ones(8, 6))
-    # buffers travel with the state dict, also into a module of another shape
-    fresh = MinMaxNormalizer(shape=6)
-    fresh.load_state_dict(nh.state_dict())
-    torch.testing.assert_close(fresh.normalize(xh), yh)
-    assert set(nh.state_dict()) == {"min", "max"}
-    with pytest.raises(ValueError):
-        MinMaxNormalizer(torch.ones(3), torch.zeros(3))
-
-
-def test_estimate_rnd_action_stats():
-    ad = EEDeltaAdapter(pos_scale=0.1, rot_scale=0.3)
-    data = []
-    for i in range(5):
-        a = torch.rand(4, 8, 7, dtype=DT) * 2 - 1
-        data.append({"action": a, "T_world_ee": random_pose(4, seed=10 + i)})
-    stats = estimate_rnd_action_stats(data, ad)
-    vec = torch.cat([chunk_to_vector(*ad.to_rnd(d["action"], d["T_world_ee"]))[..., :6] for d in data])
-    torch.testing.assert_close(stats["min"], vec.reshape(-1, 6).amin(0).float())
-    torch.testing.assert_close(stats["max"], vec.reshape(-1, 6).amax(0).float())
-    assert stats["count"] == 20
-    per = estimate_rnd_action_stats(((d["action"], d["T_world_ee"]) for d in data), ad, per_horizon=True)
-    assert per["min"].shape == (8, 6)
-    torch.testing.assert_close(per["min"], vec.amin(0).float())
-    norm = MinMaxNormalizer(stats["min"], stats["max"])
-    assert norm(vec.float()).abs().max() <= 1 + 1e-5
-    few = estimate_rnd_action_stats(data, ad, max_samples=2)
-    assert few["count"] == 8
-    with pytest.raises(ValueError, match="no samples"):
-        estimate_rnd_action_stats([], ad)
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")

@@ -322,6 +322,21 @@ def test_registration_degenerate_inputs(method, dtype):
     assert torch.allclose(mapped, dst[3], atol=1e-5)
 
 
+def test_registration_horn_traces_as_one_graph():
+    """method="horn" has no host syncs / data-dependent shapes: dynamo traces it whole."""
+    src = torch.randn(5, 20, 3, generator=torch.Generator().manual_seed(1))
+    dst = src @ so3_exp(torch.tensor([0.3, -0.2, 0.5])).T + 0.1
+    w = torch.ones(5, 20)
+    ref, _ = weighted_rigid_registration(src, dst, w, method="horn")
+    torch._dynamo.reset()
+    try:
+        fn = torch.compile(lambda a, b, c: weighted_rigid_registration(a, b, c, method="horn"), backend="eager", fullgraph=True)
+        T, valid = fn(src, dst, w)
+    finally:
+        torch._dynamo.reset()
+    assert valid.all() and torch.allclose(T, ref)
+
+
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
 def test_registration_cuda_graph_capture():
     dev = torch.device("cuda")

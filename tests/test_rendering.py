@@ -327,6 +327,26 @@ def test_float64_inputs_and_shading_flag():
     assert out.rgb.dtype == torch.float32 and out.points_cam.dtype == torch.float32
 
 
+def test_static_path_traces_as_one_graph():
+    """The static path has no host syncs / data-dependent shapes: dynamo traces it whole."""
+    mesh = MESHES["ico"]
+    mb = MeshBatch.from_meshes([(mesh.vertices, mesh.faces, None)])
+    N = 3
+    T = torch.tensor(np.stack([_pose([0.1 * i, 0.2, 0.0], [0.0, 0.0, 0.3]) for i in range(N)])).float()
+    mi = torch.zeros(N, dtype=torch.long)
+    K = torch.tensor(K_NP).float()
+    rast = Rasterizer(mb, (H, W))
+    rast.calibrate(mi, T, K)
+    ref = rast(mi, T, K)
+    torch._dynamo.reset()
+    try:
+        fn = torch.compile(lambda a, b, c: rast(a, b, c), backend="eager", fullgraph=True)
+        out = fn(mi, T, K)
+    finally:
+        torch._dynamo.reset()
+    assert torch.equal(out.mask, ref.mask) and torch.equal(out.points_cam, ref.points_cam)
+
+
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="needs CUDA")
 def test_cuda_static_path_graph_capture_matches_cpu():
     mesh = MESHES["gripper"]

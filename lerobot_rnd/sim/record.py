@@ -1,8 +1,15 @@
-"""Record scripted-expert demonstrations of a MetaWorld task into a LeRobotDataset (v3, PNG images).
+"""Record scripted-expert demonstrations of a MetaWorld or Panda task into a LeRobotDataset (v3, PNG images).
 
     python -m lerobot_rnd.sim.record --task reach-v3 --episodes 20 \\
         --root outputs/data/mw_reach --repo-id local/mw_reach [--placements random|fps] [--seed 0] \\
         [--fps-pool 1000] [--image-size 128] [--cameras corner2,behindGripper] [--resume]
+    lerobot-rnd-record --suite panda --task lift-cube --episodes 20 \\
+        --root outputs/data/panda_lift --repo-id local/panda_lift
+
+Suites: ``metaworld`` (default; ``lerobot_rnd.sim.metaworld_env``, MetaWorld V3 tasks, 80 fps, 4-D
+actions) and ``panda`` (``lerobot_rnd.sim.panda_env``: Franka Panda + Robotiq on gym-hil's assets, tasks
+lift-cube / push-block / press-button, 10 fps, 7-D actions; default cameras front,wrist and
+``--max-steps`` 120).
 
 Only successful episodes are kept (failures are counted and reported). ``--episodes`` is the number of
 kept episodes the dataset should hold: with ``--resume`` recording continues where it stopped, with the
@@ -15,8 +22,8 @@ Written next to LeRobot's metadata:
     meta/rnd_recording.json   task, settings, and every attempted placement with its outcome
 
 Each frame holds ``observation.images.<cam>`` (uint8 HxWx3 -> PNG), ``observation.state`` (see
-``lerobot_rnd.sim.metaworld_env``), ``action`` (the expert's 4-D MetaWorld action taken from that
-observation) and the task description. After the first success ``--extra-steps`` more frames are
+``lerobot_rnd.sim.metaworld_env`` / ``lerobot_rnd.sim.panda_env``), ``action`` (the expert's action taken
+from that observation: 4-D MetaWorld, 7-D Panda) and the task description. After the first success ``--extra-steps`` more frames are
 recorded so that policies learn to stay at the goal.
 """
 
@@ -42,6 +49,9 @@ logger = logging.getLogger(__name__)
 
 EMBODIMENT_FILE = "meta/rnd_embodiment.json"
 RECORDING_FILE = "meta/rnd_recording.json"
+SUITES = ("metaworld", "panda")
+PANDA_DEFAULT_CAMERAS = ["front", "wrist"]
+PANDA_DEFAULT_MAX_STEPS = 120
 
 
 # --------------------------------------------------------------------------------------------------
@@ -121,12 +131,17 @@ class RecordSettings:
     max_attempts: int | None = None
     resume: bool = False
     image_writer_threads: int = 2
+    suite: str = "metaworld"
 
 
 def dataset_features(
-    camera_names: Sequence[str], image_size: tuple[int, int], state_names: Sequence[str]
+    camera_names: Sequence[str],
+    image_size: tuple[int, int],
+    state_names: Sequence[str],
+    action_names: Sequence[str] | None = None,
 ) -> dict:
-    from lerobot_rnd.sim.metaworld_env import ACTION_NAMES
+    if action_names is None:
+        from lerobot_rnd.sim.metaworld_env import ACTION_NAMES as action_names
 
     H, W = image_size
     feats = {
@@ -142,16 +157,19 @@ def dataset_features(
         "shape": (len(state_names),),
         "names": list(state_names),
     }
-    feats["action"] = {"dtype": "float32", "shape": (4,), "names": list(ACTION_NAMES)}
+    feats["action"] = {"dtype": "float32", "shape": (len(action_names),), "names": list(action_names)}
     return feats
 
 
 def run_expert_episode(env, expert, placement: np.ndarray, max_steps: int, extra_steps: int):
-    """Roll the expert out from ``placement``; returns (frames, success, steps_to_success)."""
+    """Roll the expert out from ``placement``; returns (frames, success, steps_to_success).
+
+    ``expert.act(env)`` gives the action (MetaWorld experts read the raw observation, Panda experts
+    the simulator state)."""
     obs, _ = env.reset(options={"placement": placement})
     frames, success_at = [], None
     for t in range(max_steps + extra_steps):
-        action = expert(env.raw_observation)
+        action = expert.act(env)
         frames.append((obs, action))
         obs, _, _, _, info = env.step(action)
         if info["is_success"] and success_at is None:
@@ -164,10 +182,7 @@ def run_expert_episode(env, expert, placement: np.ndarray, max_steps: int, extra
 
 
 def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
-    """Record ``settings.episodes`` successful expert episodes; returns a summary dict."""
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset
-    from tqdm import tqdm
-
+    """Record ``settings.episodes`` successful expert episodes of a MetaWorld task; returns a summary dict."""
     from lerobot_rnd.sim.experts import MetaWorldExpert
     from lerobot_rnd.sim.metaworld_env import (
         LEROBOT_CORNER2_POS,
@@ -177,7 +192,8 @@ def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
     )
 
     s = settings
-    root = Path(s.root)
+    if s.suite != "metaworld":
+        raise ValueError(f"record_metaworld needs suite 'metaworld', got {s.suite!r}")
     if s.max_steps + s.extra_steps > MAX_PATH_LENGTH:
         raise ValueError(f"max_steps + extra_steps must be <= {MAX_PATH_LENGTH}")
     env = RnDMetaWorldEnv(
@@ -191,8 +207,60 @@ def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
         terminate_on_success=False,
         state_layout=s.state_layout,
     )
-    record_keys = ("task", "cameras", "image_size", "flip_cameras", "lerobot_corner2_pos", "state_layout",
-                   "placements", "seed", "fps_pool")  # fmt: skip
+    expert = MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed)
+    return _record(s, env, expert, fps=METAWORLD_FPS, robot_type="sawyer", action_names=None, progress=progress)
+
+
+def record_panda(settings: RecordSettings, progress: bool = True) -> dict:
+    """Record ``settings.episodes`` successful expert episodes of a Panda task (``lerobot_rnd.sim.panda_env``);
+    returns a summary dict. ``cameras`` left at the MetaWorld default means the Panda default (front, wrist)."""
+    from dataclasses import replace
+
+    from lerobot_rnd.sim.panda_env import ACTION_NAMES, PANDA_TASKS, RnDPandaEnv
+    from lerobot_rnd.sim.panda_experts import PandaExpert
+
+    s = settings
+    if s.suite != "panda":
+        raise ValueError(f"record_panda needs suite 'panda', got {s.suite!r}")
+    if s.task not in PANDA_TASKS:
+        raise ValueError(f"unknown Panda task {s.task!r}; tasks: {', '.join(PANDA_TASKS)}")
+    if s.cameras == RecordSettings().cameras:
+        s = replace(s, cameras=list(PANDA_DEFAULT_CAMERAS))
+    if s.flip_cameras:
+        raise ValueError("--flip-cameras is not supported by the panda suite")
+    env = RnDPandaEnv(
+        s.task,
+        camera_names=s.cameras,
+        observation_height=s.image_size,
+        observation_width=s.image_size,
+        episode_length=s.max_steps + s.extra_steps,
+        terminate_on_success=False,
+    )
+    expert = PandaExpert(s.task, noise_std=s.noise_std, seed=s.seed)
+    return _record(
+        s, env, expert, fps=env.metadata["render_fps"], robot_type="panda", action_names=ACTION_NAMES,
+        progress=progress,
+    )  # fmt: skip
+
+
+def record(settings: RecordSettings, progress: bool = True) -> dict:
+    """Record with the suite named in ``settings.suite`` ("metaworld" or "panda")."""
+    if settings.suite == "metaworld":
+        return record_metaworld(settings, progress=progress)
+    if settings.suite == "panda":
+        return record_panda(settings, progress=progress)
+    raise ValueError(f"unknown suite {settings.suite!r}; suites: {', '.join(SUITES)}")
+
+
+def _record(s: RecordSettings, env, expert, *, fps: int, robot_type: str, action_names, progress: bool) -> dict:
+    """The recording loop shared by the suites (``env`` / ``expert`` built from ``s``)."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    from tqdm import tqdm
+
+    root = Path(s.root)
+    record_keys = ("suite", "task", "cameras", "image_size", "flip_cameras", "lerobot_corner2_pos",
+                   "state_layout", "placements", "seed", "fps_pool")  # fmt: skip
+    key_defaults = {"suite": "metaworld"}  # recordings made before the key existed
     log: dict = {"settings": asdict(s), "attempts": []}
     if root.exists():
         if not s.resume:
@@ -206,11 +274,15 @@ def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
         if rec_path.exists():
             log = json.loads(rec_path.read_text())
             old = log["settings"]
-            diff = {k: (old.get(k), getattr(s, k)) for k in record_keys if old.get(k) != getattr(s, k)}
+            diff = {
+                k: (old.get(k, key_defaults.get(k)), getattr(s, k))
+                for k in record_keys
+                if old.get(k, key_defaults.get(k)) != getattr(s, k)
+            }
             if diff:
                 raise ValueError(f"--resume with settings that differ from the recording's: {diff}")
             log["settings"] = asdict(s)
-        expected = dataset_features(s.cameras, (s.image_size, s.image_size), env.state_names)
+        expected = dataset_features(s.cameras, (s.image_size, s.image_size), env.state_names, action_names)
         for k, ft in expected.items():
             have = dataset.meta.features.get(k)
             if have is None or tuple(have["shape"]) != tuple(ft["shape"]):
@@ -218,10 +290,10 @@ def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
     else:
         dataset = LeRobotDataset.create(
             repo_id=s.repo_id,
-            fps=METAWORLD_FPS,
-            features=dataset_features(s.cameras, (s.image_size, s.image_size), env.state_names),
+            fps=fps,
+            features=dataset_features(s.cameras, (s.image_size, s.image_size), env.state_names, action_names),
             root=root,
-            robot_type="sawyer",
+            robot_type=robot_type,
             use_videos=False,
         )
     env.embodiment().save_json(root / EMBODIMENT_FILE)
@@ -231,7 +303,6 @@ def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
     have = dataset.meta.total_episodes
     next_index = 1 + max((a["placement_index"] for a in log["attempts"]), default=-1)
     seq = PlacementSequence(env, s.placements, s.seed, s.fps_pool)
-    expert = MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed)
     max_attempts = s.max_attempts if s.max_attempts is not None else 3 * s.episodes + 10
     failures, attempts, frames_written, t0 = 0, 0, 0, time.time()
     bar = tqdm(total=s.episodes, initial=min(have, s.episodes), desc=f"{s.task} demos", disable=not progress)
@@ -288,6 +359,8 @@ def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
         "failures": failures,
         "seconds": round(elapsed, 2),
     }
+    if frames_written:
+        summary["frames_per_second"] = round(frames_written / max(elapsed, 1e-9), 1)
     return summary
 
 
@@ -298,7 +371,10 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     d = RecordSettings()
-    p.add_argument("--task", default=d.task, help="MetaWorld V3 task, e.g. reach-v3")
+    p.add_argument("--suite", choices=list(SUITES), default=d.suite, help="metaworld (default) or panda")
+    p.add_argument(
+        "--task", default=None, help="task: MetaWorld V3 (default reach-v3) or Panda (default lift-cube)"
+    )
     p.add_argument(
         "--episodes", type=int, default=d.episodes, help="successful episodes the dataset should hold"
     )
@@ -310,12 +386,19 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings:
         "--fps-pool", type=int, default=d.fps_pool, help="candidate pool size for --placements fps"
     )
     p.add_argument("--image-size", type=int, default=d.image_size)
-    p.add_argument("--cameras", default=",".join(d.cameras), help="comma-separated MuJoCo camera names")
+    p.add_argument(
+        "--cameras",
+        default=None,
+        help="comma-separated camera names (default: corner2,behindGripper / panda: front,wrist)",
+    )
     p.add_argument("--flip-cameras", default="", help="cameras whose images are turned by 180 degrees")
     p.add_argument("--metaworld-corner2-pos", action="store_true", help="keep MetaWorld's corner2 position")
     p.add_argument("--state-layout", choices=["pos_grip_quat", "pos_grip_quat_mocap"], default=d.state_layout)
     p.add_argument(
-        "--max-steps", type=int, default=d.max_steps, help="steps before an episode counts as failed"
+        "--max-steps",
+        type=int,
+        default=None,
+        help=f"steps before an episode counts as failed (default {d.max_steps}; panda {PANDA_DEFAULT_MAX_STEPS})",
     )
     p.add_argument(
         "--extra-steps", type=int, default=d.extra_steps, help="frames recorded after the first success"
@@ -330,19 +413,23 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings:
     )
     a = p.parse_args(argv)
     split = lambda x: [c for c in (t.strip() for t in x.split(",")) if c]
+    panda = a.suite == "panda"
+    task = a.task or ("lift-cube" if panda else d.task)
+    cameras = split(a.cameras) if a.cameras else (list(PANDA_DEFAULT_CAMERAS) if panda else list(d.cameras))
+    max_steps = a.max_steps if a.max_steps is not None else (PANDA_DEFAULT_MAX_STEPS if panda else d.max_steps)
     return RecordSettings(
-        task=a.task, episodes=a.episodes, root=a.root, repo_id=a.repo_id, placements=a.placements, seed=a.seed,
-        fps_pool=a.fps_pool, image_size=a.image_size, cameras=split(a.cameras), flip_cameras=split(a.flip_cameras),
-        lerobot_corner2_pos=not a.metaworld_corner2_pos, state_layout=a.state_layout, max_steps=a.max_steps,
+        task=task, episodes=a.episodes, root=a.root, repo_id=a.repo_id, placements=a.placements, seed=a.seed,
+        fps_pool=a.fps_pool, image_size=a.image_size, cameras=cameras, flip_cameras=split(a.flip_cameras),
+        lerobot_corner2_pos=not a.metaworld_corner2_pos, state_layout=a.state_layout, max_steps=max_steps,
         extra_steps=a.extra_steps, noise_std=a.noise, max_attempts=a.max_attempts, resume=a.resume,
-        image_writer_threads=a.image_writer_threads,
+        image_writer_threads=a.image_writer_threads, suite=a.suite,
     )  # fmt: skip
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     settings = _parse(argv)
-    summary = record_metaworld(settings)
+    summary = record(settings)
     print(json.dumps(summary, indent=1))
     return 0
 

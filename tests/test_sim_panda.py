@@ -1,0 +1,439 @@
+"""Panda + Robotiq suite (gym-hil's assets): env, experts, calibration against MuJoCo's own rendering, the
+``ee_delta`` action adapter against the simulator, the LeRobot env config and the recorder.
+
+Independent references: MuJoCo's segmentation rendering (marker spheres / the gripper geoms) versus our
+calibration's projection / our renderer's mask of the extracted mesh; the controller's target pose and
+the EE poses actually reached versus the adapter's prediction from the recorded actions.
+"""
+
+import json
+import math
+import os
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("gym_hil", reason="gym-hil is not installed (pip install --no-deps gym-hil==0.1.14)")
+mujoco = pytest.importorskip("mujoco")
+
+
+def _gl_available() -> bool:
+    try:
+        m = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
+        r = mujoco.Renderer(m, 8, 8)
+        r.render()
+        r.close()
+        return True
+    except Exception:  # noqa: BLE001
+        return False
+
+
+pytestmark = pytest.mark.skipif(not _gl_available(), reason="no headless OpenGL (MUJOCO_GL=egl/osmesa)")
+
+from lerobot_rnd.sim.panda_env import (  # noqa: E402
+    FINGER_BODIES,
+    GRIPPER_ROOT_BODY,
+    HOME_QUAT,
+    MUJOCO_CAMERAS,
+    PANDA_TASKS,
+    START_POS,
+    RnDPandaEnv,
+)
+from lerobot_rnd.sim.panda_experts import PandaExpert  # noqa: E402
+
+SITE = int(mujoco.mjtObj.mjOBJ_SITE)
+GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+
+
+def small_env(task, **kw):
+    kw.setdefault("camera_names", ("front",))
+    kw.setdefault("observation_height", 32)
+    kw.setdefault("observation_width", 32)
+    return RnDPandaEnv(task, **kw)
+
+
+def yaw_of_ee(T):
+    x = T[:3, 0]  # EE x axis (horizontal when pointing down); home: world +x
+    return math.atan2(x[1], x[0])
+
+
+# --------------------------------------------------------------------------------------------------
+# env basics
+# --------------------------------------------------------------------------------------------------
+def test_observation_layout_and_action_semantics():
+    env = RnDPandaEnv("lift-cube", observation_height=64, observation_width=96)
+    obs, info = env.reset(seed=0)
+    assert env.observation_space.contains(obs) and info["is_success"] is False
+    assert set(obs["pixels"]) == {"front", "wrist"}
+    assert obs["pixels"]["wrist"].shape == (64, 96, 3) and obs["pixels"]["wrist"].dtype == np.uint8
+    s = obs["agent_pos"]
+    assert s.shape == (8,) and s.dtype == np.float32
+    np.testing.assert_allclose(s[:3], env.data.site("pinch").xpos, atol=1e-6)
+    np.testing.assert_allclose(s[:3], START_POS, atol=2e-3)
+    np.testing.assert_allclose(s[3:7], HOME_QUAT, atol=5e-3)  # pointing down, canonical sign
+    assert s[7] > 0.95  # open
+    # one step: the target moves by 0.02 m / 0.1 rad per unit in the WORLD frame; gripper is absolute
+    T0 = env.mocap_pose()
+    a = np.array([1.0, -0.5, 0.25, 0.0, 0.0, 1.0, 1.0], np.float32)
+    obs, r, term, trunc, info = env.step(a)
+    T1 = env.mocap_pose()
+    np.testing.assert_allclose(T1[:3, 3] - T0[:3, 3], [0.02, -0.01, 0.005], atol=1e-9)
+    Rz = np.array([[math.cos(0.1), -math.sin(0.1), 0], [math.sin(0.1), math.cos(0.1), 0], [0, 0, 1]])
+    np.testing.assert_allclose(T1[:3, :3], Rz @ T0[:3, :3], atol=1e-9)
+    assert env.data.ctrl[env._grip_act] == pytest.approx(255.0)
+    env.step(np.array([0, 0, 0, 0, 0, 0, 5.0], np.float32))  # clipped to [-1, 1]
+    assert env.data.ctrl[env._grip_act] == pytest.approx(255.0)
+    for _ in range(6):
+        obs, *_ = env.step(np.array([0, 0, 0, 0, 0, 0, 1.0], np.float32))
+    assert obs["agent_pos"][7] < 0.1  # closed on nothing
+    q = obs["agent_pos"][3:7]
+    assert np.linalg.norm(q) == pytest.approx(1.0, abs=1e-5) and q @ HOME_QUAT >= 0
+    assert env.render().shape == (64, 192, 3)
+    with pytest.raises(ValueError, match="7"):
+        env.step(np.zeros(4, np.float32))
+    env.close()
+
+
+def test_reset_with_fixed_placement_is_reproducible():
+    env = small_env("push-block", camera_names=("front", "wrist"))
+    placement = np.array([0.45, -0.05, 0.3, 0.40, 0.10])
+    a = np.array([0.3, -0.2, -0.4, 0.1, 0.0, -0.3, 1.0], np.float32)
+    obs1, _ = env.reset(options={"placement": placement})
+    for _ in range(4):
+        obs1, *_ = env.step(a)
+    np.testing.assert_allclose(env.placement, placement)
+    env.reset(seed=123)  # something else in between (moves the target disc)
+    obs2, _ = env.reset(options={"placement": placement})
+    for _ in range(4):
+        obs2, *_ = env.step(a)
+    np.testing.assert_array_equal(obs1["agent_pos"], obs2["agent_pos"])
+    for c in env.camera_names:
+        np.testing.assert_array_equal(obs1["pixels"][c], obs2["pixels"][c])
+    # the objects sit where the placement puts them
+    np.testing.assert_allclose(env.object_pos()[:2], placement[:2], atol=2e-3)
+    q = env.object_quat()
+    assert 2 * math.atan2(q[3], q[0]) == pytest.approx(placement[2], abs=0.02)
+    np.testing.assert_allclose(env.target_pos()[:2], placement[3:5], atol=1e-9)
+    # seeded random placements are reproducible and differ between seeds
+    env.reset(seed=7)
+    p7 = env.placement
+    env.reset(seed=8)
+    assert not np.allclose(env.placement, p7)
+    env.reset(seed=7)
+    np.testing.assert_array_equal(env.placement, p7)
+    assert env.is_valid_placement(p7)
+    # target on top of the block / wrong size: refused
+    bad = np.array([0.45, 0.0, 0.0, 0.45, 0.01])
+    assert not env.is_valid_placement(bad)
+    with pytest.raises(ValueError, match="invalid placement"):
+        env.reset(options={"placement": bad})
+    with pytest.raises(ValueError, match="5 numbers"):
+        env.reset(options={"placement": [0.4, 0.0, 0.0]})
+    env.close()
+
+
+# --------------------------------------------------------------------------------------------------
+# experts
+# --------------------------------------------------------------------------------------------------
+EXPERT_PLACEMENTS = {
+    "lift-cube": [[0.36, 0.12, 0.7], [0.52, -0.10, -0.6]],  # yaw near +-45 degrees
+    "push-block": [[0.40, -0.08, 0.5, 0.55, 0.05], [0.50, 0.10, -0.3, 0.35, -0.02]],
+    "press-button": [[0.35, -0.12, 0.3], [0.53, 0.13, -0.7]],
+}
+
+
+@pytest.mark.parametrize("task", PANDA_TASKS)
+def test_expert_succeeds(task):
+    env = small_env(task, episode_length=120)
+    expert = PandaExpert(task)
+    for placement in EXPERT_PLACEMENTS[task]:
+        env.reset(options={"placement": placement})
+        grasp_yaw = None
+        for _ in range(120):
+            a = expert.act(env)
+            assert a.shape == (7,) and a.dtype == np.float32 and np.abs(a).max() <= 1.0
+            _, _, term, trunc, info = env.step(a)
+            if task == "lift-cube" and grasp_yaw is None and a[6] > 0:
+                grasp_yaw = yaw_of_ee(env.ee_pose())
+            if term or trunc:
+                break
+        assert term and info["is_success"] and not trunc, (task, placement)
+        if task == "lift-cube":  # the gripper turned to the cube's yaw (6-DoF), modulo 90 degrees
+            d = (grasp_yaw - placement[2] + math.pi / 4) % (math.pi / 2) - math.pi / 4
+            assert abs(d) < math.radians(4), (math.degrees(grasp_yaw), placement)
+            assert abs(grasp_yaw) > math.radians(30)
+    env.close()
+
+
+# --------------------------------------------------------------------------------------------------
+# calibration vs MuJoCo's rendering
+# --------------------------------------------------------------------------------------------------
+def segmentation(env, camera, size, markers=(), radii=(), markers_only=False, only_geoms=None):
+    """MuJoCo segmentation image (objid, objtype) with marker spheres as objid 1000+i (type site)."""
+    r = mujoco.Renderer(env.model, size[0], size[1])
+    r.enable_segmentation_rendering()
+    opt = mujoco.MjvOption()
+    saved = env.model.geom_group.copy()
+    if only_geoms is not None:
+        env.model.geom_group[:] = 0
+        env.model.geom_group[only_geoms] = 5
+        opt.geomgroup[:] = 0
+        opt.geomgroup[5] = 1
+        opt.sitegroup[:] = 0
+    try:
+        r.update_scene(env.data, camera=MUJOCO_CAMERAS[camera], scene_option=opt)
+    finally:
+        env.model.geom_group[:] = saved
+    if markers_only:
+        r.scene.ngeom = 0
+    for i, (p, rad) in enumerate(zip(markers, radii, strict=True)):
+        g = r.scene.geoms[r.scene.ngeom]
+        mujoco.mjv_initGeom(
+            g, mujoco.mjtGeom.mjGEOM_SPHERE, np.array([rad, 0, 0]), np.asarray(p, float), np.eye(3).ravel(),
+            np.ones(4, np.float32),
+        )  # fmt: skip
+        g.objtype, g.objid, g.segid = SITE, 1000 + i, r.scene.ngeom
+        r.scene.ngeom += 1
+    seg = r.render().copy()
+    r.close()
+    return seg
+
+
+def marker_errors(env, cam, size, seed=0):
+    """Pixel error between the centroids of marker spheres as MuJoCo draws them and our projection of
+    their centres: 16 markers on a grid of pixels at random depths, plus one at the EE site."""
+    rng = np.random.default_rng(seed)
+    T_we = torch.tensor(env.ee_pose())
+    H, W = size
+    gu, gv = np.meshgrid(np.linspace(0.15, 0.85, 4) * (W - 1), np.linspace(0.15, 0.85, 4) * (H - 1))
+    uv1 = np.stack([gu.ravel(), gv.ravel(), np.ones(16)], 1) + np.c_[rng.uniform(-2, 2, (16, 2)), np.zeros(16)]
+    depth = rng.uniform(0.15, 1.2, 16)
+    p_cam = (np.linalg.inv(cam.K) @ uv1.T).T * depth[:, None]
+    T_wc = cam.T_world_cam_at(T_we).numpy()
+    pts = np.concatenate([p_cam @ T_wc[:3, :3].T + T_wc[:3, 3], env.ee_pose()[None, :3, 3]])
+    uv, z = cam.project(torch.tensor(pts), T_we)
+    radii = 5.0 * z.numpy() / cam.K[1, 1]  # about 5 px on screen
+    seg = segmentation(env, cam.name, size, pts, radii, markers_only=True)
+    errs = []
+    for i in range(len(pts)):
+        m = (seg[..., 0] == 1000 + i) & (seg[..., 1] == SITE)
+        if m.sum() < 0.9 * np.pi * 25:  # off screen or behind another marker
+            continue
+        vv, uu = np.nonzero(m)
+        errs.append([uu.mean() - uv[i, 0].item(), vv.mean() - uv[i, 1].item()])
+    return np.asarray(errs)
+
+
+@pytest.fixture(scope="module")
+def env_tilted():
+    """lift-cube with the EE moved, turned and tilted (so the wrist camera's rigid mount is tested)."""
+    env = RnDPandaEnv("lift-cube", terminate_on_success=False)
+    env.reset(options={"placement": [0.45, 0.05, 0.3]})
+    for _ in range(4):
+        env.step(np.array([-0.5, 0.5, -0.5, 0.6, -0.5, 1.0, -1.0], np.float32))
+    for _ in range(6):
+        env.step(np.array([0, 0, 0, 0, 0, 0, -1.0], np.float32))
+    yield env
+    env.close()
+
+
+def test_ee_is_tilted(env_tilted):
+    R = env_tilted.ee_pose()[:3, :3]
+    z = R[:, 2]
+    assert math.degrees(math.acos(-z[2])) > 10  # the fingers no longer point straight down
+    assert env_tilted.gripper_opening() > 0.95
+
+
+@pytest.mark.parametrize("camera", ["front", "wrist"])
+def test_calibration_matches_mujoco_projection(env_tilted, camera):
+    env = env_tilted
+    emb = env.embodiment(max_faces=1500)
+    cam = emb.cameras[f"observation.images.{camera}"]
+    assert cam.is_static == (camera == "front")
+    errs = marker_errors(env, cam, cam.image_size)
+    assert len(errs) >= 14
+    assert np.abs(errs.mean(0)).max() < 0.05, errs.mean(0)
+    assert np.abs(errs).max() < 0.35, np.abs(errs).max()
+    big = cam.resized(384, 384)
+    errs = marker_errors(env, big, (384, 384), seed=1)
+    assert len(errs) >= 14
+    assert np.abs(errs.mean(0)).max() < 0.05 and np.abs(errs).max() < 0.35, errs
+
+
+def _subtree_geoms(model, roots):
+    ids = {model.body(r).id for r in roots}
+    out = []
+    for g in range(model.ngeom):
+        b = int(model.geom_bodyid[g])
+        while b > 0 and b not in ids:
+            b = int(model.body_parentid[b])
+        if b in ids and int(model.geom_group[g]) <= 2:
+            out.append(g)
+    return out
+
+
+def test_gripper_mask_iou_and_preset(env_tilted):
+    """Our renderer's mask of the extracted, simplified mesh at the pose read from observation.state vs
+    MuJoCo's segmentation of the same gripper geoms (drawn alone); the preset matches the env's."""
+    from lerobot_rnd.embodiment import load_embodiment
+    from lerobot_rnd.geometry import invert_transform
+    from lerobot_rnd.rendering import render
+
+    env = env_tilted
+    emb = env.embodiment()
+    state = torch.as_tensor(env.state(), dtype=torch.float64)
+    T_we = emb.ee_pose_source.ee_pose(state)
+    np.testing.assert_allclose(T_we.numpy(), env.ee_pose(), atol=1e-6)
+    assert emb.ee_pose_source.gripper(state).item() < 0.05  # open
+    for cam_name, roots, mesh in (("front", (GRIPPER_ROOT_BODY,), "full"), ("wrist", FINGER_BODIES, "fingers")):
+        key = f"observation.images.{cam_name}"
+        assert emb.camera_mesh[key] == mesh
+        cam = emb.cameras[key]
+        geoms = _subtree_geoms(env.model, roots)
+        seg = segmentation(env, cam_name, cam.image_size, only_geoms=geoms)
+        gt = np.isin(seg[..., 0], geoms) & (seg[..., 1] == GEOM)
+        T_ce = invert_transform(cam.T_world_cam_at(T_we)) @ T_we
+        out = render(emb.mesh_batch(), torch.tensor([emb.mesh_index(key)]), T_ce[None].float(),
+                     cam.K_tensor()[None], cam.image_size)  # fmt: skip
+        pm = out.mask[0].numpy()
+        iou = (gt & pm).sum() / (gt | pm).sum()
+        assert gt.sum() > 150 and iou >= 0.9, (cam_name, iou, gt.sum())
+    preset = load_embodiment("panda_robotiq")
+    assert preset.name == "panda_robotiq" and preset.action_adapter == emb.action_adapter
+    assert preset.ee_pose_source.to_dict() == emb.ee_pose_source.to_dict()
+    for key, cam in emb.cameras.items():
+        np.testing.assert_allclose(preset.cameras[key].K, cam.K)
+        T = cam.T_world_cam if cam.is_static else cam.T_ee_cam
+        Tp = preset.cameras[key].T_world_cam if cam.is_static else preset.cameras[key].T_ee_cam
+        np.testing.assert_allclose(Tp, T, atol=1e-9)
+
+
+# --------------------------------------------------------------------------------------------------
+# action adapter vs the simulator
+# --------------------------------------------------------------------------------------------------
+def test_ee_delta_adapter_predicts_reached_poses():
+    """``adapter.to_rnd(actions[t:t+K], T_world_ee(t))`` vs the EE poses reached at t+1..t+K on expert
+    rollouts: exact for the controller's target pose, within the tracking lag for the real EE; the other
+    frame convention ("ee") would be far off."""
+    from lerobot_rnd.action_adapters import ActionAdapter
+    from lerobot_rnd.geometry import invert_transform, so3_log
+
+    K = 4
+    env = small_env("lift-cube", terminate_on_success=False)
+    spec = env.embodiment(max_faces=1500).action_adapter
+    assert spec["type"] == "ee_delta" and spec["frame"] == "world"
+    adapter = ActionAdapter.from_dict(spec)
+    wrong = ActionAdapter.from_dict({**spec, "frame": "ee"})
+    src = env.embodiment(max_faces=1500).ee_pose_source
+    expert = PandaExpert("lift-cube")
+    perr, rerr, target_err, wrong_err = [], [], [], []
+    for placement in ([0.40, 0.08, 0.6], [0.50, -0.10, -0.4]):
+        obs, _ = env.reset(options={"placement": placement})
+        states, actions, targets = [obs["agent_pos"]], [], [env.mocap_pose()]
+        for _ in range(40):
+            a = expert.act(env)
+            obs, *_ = env.step(a)
+            actions.append(a)
+            states.append(obs["agent_pos"])
+            targets.append(env.mocap_pose())
+        T = src.ee_pose(torch.as_tensor(np.array(states), dtype=torch.float64))
+        Tm = torch.as_tensor(np.array(targets))
+        A = torch.as_tensor(np.array(actions), dtype=torch.float64)
+        for t in range(len(actions) - K):
+            pred, g = adapter.to_rnd(A[t : t + K], T[t])
+            assert torch.equal(g, torch.where(A[t : t + K, 6] > 0, 1.0, -1.0).to(g))
+            actual = invert_transform(T[t])[None] @ T[t + 1 : t + 1 + K]
+            perr.append((pred[:, :3, 3] - actual[:, :3, 3]).norm(dim=-1).numpy())
+            rerr.append(so3_log(pred[:, :3, :3].transpose(-1, -2) @ actual[:, :3, :3]).norm(dim=-1).numpy())
+            wpred, _ = wrong.to_rnd(A[t : t + K], T[t])
+            wrong_err.append((wpred[:, :3, 3] - actual[:, :3, 3]).norm(dim=-1).numpy())
+            predm, _ = adapter.to_rnd(A[t : t + K], Tm[t])
+            actm = invert_transform(Tm[t])[None] @ Tm[t + 1 : t + 1 + K]
+            target_err.append((predm - actm).abs().max().item())
+            # and back: from_rnd reproduces the (clipped) actions
+            back = adapter.from_rnd(pred, g, T[t])
+            np.testing.assert_allclose(back[:, :6].numpy(), A[t : t + K, :6].numpy(), atol=1e-6)
+    perr, rerr, wrong_err = np.array(perr), np.degrees(np.array(rerr)), np.array(wrong_err)
+    assert max(target_err) < 1e-9  # the action definition IS the adapter's (world frame, scales)
+    assert perr.mean() < 0.010 and np.percentile(perr, 95) < 0.022 and perr.max() < 0.035, (
+        perr.mean(0), perr.max())  # fmt: skip
+    assert rerr.mean() < 2.5 and rerr.max() < 10.0, (rerr.mean(), rerr.max())
+    assert wrong_err.mean() > 4 * perr.mean()
+    env.close()
+
+
+# --------------------------------------------------------------------------------------------------
+# LeRobot integration, recorder, gym-hil compatibility
+# --------------------------------------------------------------------------------------------------
+def test_lerobot_env_config_and_make_env():
+    import gymnasium as gym
+    from lerobot.envs.configs import EnvConfig
+    from lerobot.envs.factory import make_env
+    from lerobot.envs.utils import env_to_policy_features, preprocess_observation
+
+    cfg = EnvConfig.get_choice_class("rnd_panda")(task="press-button", episode_length=3)
+    feats = env_to_policy_features(cfg)
+    assert feats["observation.images.front"].shape == (3, 128, 128)
+    assert feats["observation.images.wrist"].shape == (3, 128, 128)
+    assert feats["observation.state"].shape == (8,) and feats["action"].shape == (7,)
+    assert cfg.gym_id == "gym_rnd_panda/press-button" and cfg.fps == 10
+    envs = make_env(cfg, n_envs=2)
+    vec = envs["rnd_panda"][0]
+    assert isinstance(vec, gym.vector.VectorEnv)
+    obs, _ = vec.reset(seed=[0, 1])
+    batch = preprocess_observation(obs)
+    assert batch["observation.images.front"].shape == (2, 3, 128, 128)
+    assert batch["observation.state"].shape == (2, 8)
+    done = np.zeros(2, bool)
+    for _ in range(3):
+        obs, _, term, trunc, info = vec.step(np.zeros((2, 7), np.float32))
+        done |= term | trunc
+    assert done.all()
+    vec.close()
+
+
+def test_recorder_writes_loadable_dataset(tmp_path):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_rnd.embodiment import Embodiment
+    from lerobot_rnd.sim.record import main
+
+    root = tmp_path / "panda_press"
+    assert main(["--suite", "panda", "--task", "press-button", "--episodes", "2", "--root", str(root),
+                 "--repo-id", "local/panda_press", "--image-size", "64", "--extra-steps", "2",
+                 "--max-steps", "40"]) == 0  # fmt: skip
+    ds = LeRobotDataset("local/panda_press", root=root)
+    assert ds.num_episodes == 2 and ds.fps == 10 and ds.meta.robot_type == "panda"
+    item = ds[0]
+    assert item["observation.images.front"].shape == (3, 64, 64)
+    assert item["observation.images.wrist"].shape == (3, 64, 64)
+    assert item["observation.state"].shape == (8,) and item["action"].shape == (7,)
+    assert item["task"] == "Press the red button"
+    emb = Embodiment.load_json(root / "meta" / "rnd_embodiment.json")
+    emb.validate_against(ds.meta.features)
+    assert emb.name == "panda_robotiq" and emb.action_adapter["frame"] == "world"
+    rec = json.loads((root / "meta" / "rnd_recording.json").read_text())
+    assert rec["settings"]["suite"] == "panda" and rec["settings"]["cameras"] == ["front", "wrist"]
+    assert sum(a["success"] for a in rec["attempts"]) == 2
+    # every episode ends pressed (success) plus the extra frames
+    n0 = ds.meta.episodes["dataset_to_index"][0]
+    assert rec["attempts"][0]["num_frames"] == n0 == rec["attempts"][0]["steps_to_success"] + 2
+
+
+def test_gym_hil_envs_step_on_installed_mujoco():
+    """gym-hil 0.1.14's own env steps after ``patch_gym_hil_for_mujoco`` (MuJoCo 4 removed MjData.qM)."""
+    from gym_hil.envs import PandaPickCubeGymEnv
+
+    from lerobot_rnd.sim.panda_env import patch_gym_hil_for_mujoco
+
+    patch_gym_hil_for_mujoco()
+    env = PandaPickCubeGymEnv()
+    env.reset(seed=0)
+    z0 = env.data.site("pinch").xpos[2]
+    for _ in range(3):
+        env.step(np.array([0, 0, 0.02, 0, 0, 0, 0], np.float32))
+    assert env.data.site("pinch").xpos[2] > z0 + 0.02
+    env.close()
