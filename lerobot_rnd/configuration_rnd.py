@@ -92,8 +92,9 @@ class RnDConfig(PreTrainedConfig):
             points by the same fraction without DDIM's rescaling about the camera centre.
         image_loss_weight, action_loss_weight, gripper_loss_weight: Weights of the three loss terms
             (L1 image-space displacement, L1 action-space update, BCE gripper).
-        inference_compile: Compile the denoising loop with `torch.compile` (CUDA graphs on GPU) for fast
-            inference. Same actions as eager up to floating-point error.
+        inference_compile: On CUDA, compile the denoising loop with `torch.compile` ("reduce-overhead": CUDA
+            graphs over static-shape rendering) for fast inference; same actions as eager up to floating-point
+            error. Ignored on CPU, where tracing takes longer than it saves.
         optimizer_*, scheduler_warmup_steps: Training preset (the paper: AdamW, lr 1e-4, weight decay 1e-2,
             cosine schedule).
     """

@@ -404,10 +404,7 @@ class RnDModel(nn.Module):
                 p0 = p_k + self.displacement_stats.unnormalize(displacement.float())
                 p_prev = point_update(p_k, p0, alpha, alpha_prev)
                 m = mask[:, n_obs:]
-                T_delta, valid = register_point_update(
-                    p_k * m[:, :, :, None], p_prev * m[:, :, :, None], m, T_world_cam[:, n_obs:],
-                    cfg.min_visible_points,
-                )
+                T_delta, valid = register_point_update(p_k, p_prev, m, T_world_cam[:, n_obs:], cfg.min_visible_points)
                 T_world_next = T_delta @ (T_world_ee_now @ T_ee)
                 a_image = self.action_stats.normalize(
                     action_from_pose(invert_transform(T_world_ee_now) @ T_world_next)
@@ -454,7 +451,7 @@ class RnDModel(nn.Module):
         b = images.shape[0]
         if noise is None:
             noise = torch.randn(b, self.config.chunk_size, 6, device=images.device)
-        if self.config.inference_compile:
+        if self.config.inference_compile and images.device.type == "cuda":
             a, logits = self._denoise_compiled(images, T_world_ee, gripper, noise)
         else:
             a, logits = self.denoise(images, T_world_ee, gripper, noise)

@@ -14,13 +14,19 @@ POINT_UPDATES = ("ddim", "interpolate")
 
 
 def make_noise_scheduler(num_train_timesteps: int, beta_schedule: str) -> DDIMScheduler:
-    """DDIM scheduler predicting the clean sample, as in the research implementation."""
+    """DDIM scheduler predicting the clean sample, as in the research implementation.
+
+    "trailing" timestep spacing makes the first inference step k = K - 1, where the sample is pure noise
+    (diffusers' default "leading" spacing would start at K - K/S, telling the network the noise is smaller
+    than it is).
+    """
     return DDIMScheduler(
         num_train_timesteps=num_train_timesteps,
         beta_schedule=beta_schedule,
         prediction_type="sample",
         clip_sample=False,
         set_alpha_to_one=True,
+        timestep_spacing="trailing",
     )
 
 

@@ -49,6 +49,19 @@ def _wrap(a: float, period: float) -> float:
     return (a + period / 2) % period - period / 2
 
 
+def nearest_equivalent_yaw(yaw: float, period: float, current: float, limit: float = 0.75 * math.pi) -> float:
+    """The angle ``yaw + k * period`` nearest to ``current`` among those within ``[-limit, limit]``."""
+    base = _wrap(yaw, period)
+    cands = [base + k * period for k in range(-4, 5) if abs(base + k * period) <= limit]
+    return min(cands, key=lambda c: abs(c - current))
+
+
+def target_yaw(env) -> float:
+    """Yaw of the controller's target orientation (angle of its x axis in the world xy plane)."""
+    R = env.mocap_pose()[:3, :3]
+    return math.atan2(R[1, 0], R[0, 0])
+
+
 def ee_quat_for_yaw(yaw: float) -> np.ndarray:
     """EE orientation pointing down, turned by ``yaw`` about the world z axis from the home orientation."""
     return quat_mul(yaw_quat(yaw), HOME_QUAT)
@@ -145,7 +158,7 @@ class PandaExpert:
         dist = float(np.linalg.norm(d))
         u = d / max(dist, 1e-9)
         # finger-opening axis (EE y) along the push direction: EE y = (sin yaw, -cos yaw) in the world
-        yaw = _wrap(math.atan2(u[1], u[0]) + math.pi / 2, math.pi)
+        yaw = nearest_equivalent_yaw(math.atan2(u[1], u[0]) + math.pi / 2, math.pi, target_yaw(env))
         q = ee_quat_for_yaw(yaw)
         ee = env.ee_pose()[:3, 3]
         contact = max(BLOCK_HALF[:2]) + 0.008  # block half width + half the closed pads' thickness
