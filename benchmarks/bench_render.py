@@ -9,6 +9,9 @@ camera), camera 1 from ~0.15 m (a wrist camera: larger triangles). Paths measure
 * ``static``  : the fixed-shape path (capacities calibrated on the same poses, margin 1.5)
 * ``static+graph`` (CUDA only): the static path replayed from a captured CUDA graph
 
+Besides wall time, the process CPU time per call (all threads) is printed: on a shared
+machine it measures the work more robustly than the wall clock.
+
 Examples:
     python benchmarks/bench_render.py                       # CPU (and CUDA if present)
     python benchmarks/bench_render.py --faces 1000 --batch 8 --device cpu --out bench.json
@@ -86,17 +89,19 @@ def make_poses(B: int, P: int, C: int, S: int, seed: int = 0):
     return T, K.expand(T.shape[0], 3, 3).contiguous()
 
 
-def timeit(fn, iters: int, warmup: int, sync=lambda: None) -> list[float]:
+def timeit(fn, iters: int, warmup: int, sync=lambda: None) -> tuple[list[float], list[float]]:
+    """Wall-clock and process CPU seconds (all threads) per call."""
     for _ in range(warmup):
         fn()
     sync()
-    out = []
+    wall, cpu = [], []
     for _ in range(iters):
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         fn()
         sync()
-        out.append(time.perf_counter() - t0)
-    return out
+        wall.append(time.perf_counter() - t0)
+        cpu.append(time.process_time() - c0)
+    return wall, cpu
 
 
 def bench_device(device: torch.device, mesh: trimesh.Trimesh, args) -> list[dict]:
@@ -109,18 +114,21 @@ def bench_device(device: torch.device, mesh: trimesh.Trimesh, args) -> list[dict
     sync = torch.cuda.synchronize if device.type == "cuda" else (lambda: None)
     rows = []
 
-    def record(path, times, extra=None):
+    def record(path, timing, extra=None):
+        times, cpu = timing
         med = statistics.median(times)
         best = min(times)
+        cpu_best = min(cpu)
         row = dict(
             device=str(device), path=path, renders_per_call=N, faces=len(mesh.faces), image=args.size,
             cull_backfaces=args.cull, ms_median=med * 1e3, ms_best=best * 1e3,
-            renders_per_s_median=N / med, renders_per_s_best=N / best,
+            renders_per_s_median=N / med, renders_per_s_best=N / best, cpu_ms_best=cpu_best * 1e3,
         )
         row.update(extra or {})
         rows.append(row)
         print(f"{str(device):6s} {path:13s} N={N:4d} F={len(mesh.faces):5d} {args.size}px  "
-              f"median {med * 1e3:8.2f} ms  best {best * 1e3:8.2f} ms  -> {N / med:8.0f} renders/s (best {N / best:.0f})")
+              f"median {med * 1e3:8.2f} ms  best {best * 1e3:8.2f} ms  -> {N / med:7.0f} renders/s "
+              f"(best {N / best:.0f})  process CPU {cpu_best * 1e3:7.1f} ms", flush=True)
 
     with torch.no_grad():
         record("render", timeit(lambda: render(mb, mi, T, K, hw, cull_backfaces=args.cull), args.iters, args.warmup, sync))

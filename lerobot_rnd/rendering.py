@@ -558,46 +558,36 @@ class Rasterizer:
         zbuf.scatter_reduce_(0, pix, key, reduce="amax", include_self=True)
 
     # ------------------------------------------------------------------ resolve
-    def _resolve(self, key, pix, tabf, gidx, mesh_index, Kinv, vc, gid):
-        """Colours and points at flat pixels ``pix`` (n*H*W + v*W + u) whose z-buffer key is
-        ``key``: two lists of 3 channel vectors (P,). gidx maps table columns to global
-        (render * F + face) ids (None: identity)."""
-        H, W = self.H, self.W
-        HW = H * W
-        F = self.meshes.num_faces
-        col_id = key & _TID_MASK
-        rf = tabf.index_select(1, col_id)  # (14,P)
-        tid = col_id if gidx is None else gidx.index_select(0, col_id)
-        n = pix // HW
-        p = pix - n * HW
-        vq = p // W
-        v = vq.to(torch.float32)
-        u = (p - vq * W).to(torch.float32)
+    def _resolve(self, col_id, u, v, kin, tabf, cidx, gidx, vc, gid):
+        """Colours and camera-frame points of the winning triangles at pixel centres.
+
+        col_id: table column per pixel (any shape); u, v: float pixel coordinates and
+        kin: (Kinv00, Kinv01, Kinv02, Kinv11, Kinv12), all broadcastable to col_id's
+        shape; cidx: per column, row of the face colour table; gidx: per column, global
+        render * F + face id (only used with shading). Returns two lists of 3 tensors."""
+        shape = col_id.shape
+        flat = col_id.reshape(-1)
+        rf = tabf.index_select(1, flat).view(_NF, *shape)
         du = u - rf[_F_U0]
         dv = v - rf[_F_V0]
         lam = [(rf[k] + rf[3 + k] * du + rf[8 + k] * dv).clamp_(min=0) for k in range(3)]
         inv = 1.0 / (lam[0] + lam[1] + lam[2]).clamp_(min=1e-30)
-        iz = rf[_F_IZ0] + rf[_F_IA] * du + rf[_F_IB] * dv
-        zz = 1.0 / iz.clamp_(min=1e-30)
-        kx = Kinv[:, 0].index_select(0, n)  # (P,3)
-        ky = Kinv[:, 1].index_select(0, n)
-        xr = kx[:, 0] * u + kx[:, 1] * v + kx[:, 2]
-        yr = ky[:, 1] * v + ky[:, 2]
-        pts = [xr * zz, yr * zz, zz]
-        nf = tid // F
-        f = tid - nf * F
-        cid = f if self.meshes.num_meshes == 1 else mesh_index.index_select(0, n) * F + f
-        fc = self._face_colors.index_select(1, cid)  # (9,P)
+        zz = 1.0 / (rf[_F_IZ0] + rf[_F_IA] * du + rf[_F_IB] * dv).clamp_(min=1e-30)
+        xr = kin[0] * u + kin[1] * v + kin[2]
+        yr = kin[3] * v + kin[4]
+        pts = [xr * zz, yr * zz, zz.expand_as(du)]
+        fc = self._face_colors.index_select(1, cidx.index_select(0, flat)).view(9, *shape)
         b = [lam[k] * inv for k in range(3)]
         col = [b[0] * fc[c] + b[1] * fc[3 + c] + b[2] * fc[6 + c] for c in range(3)]
         if self.shading:
             vcf = vc.reshape(-1, 3)
-            g = gid.index_select(1, tid)  # (3,P)
+            g = gid.index_select(1, flat if gidx is None else gidx.index_select(0, flat))  # (3,P)
             p0, p1, p2 = (vcf.index_select(0, g[k]) for k in range(3))
-            nrm = torch.linalg.cross(p1 - p0, p2 - p0, dim=-1)
-            ray = torch.stack([xr, yr, torch.ones_like(xr)], -1)
-            cos = (nrm * ray).sum(-1).abs() / (nrm.norm(dim=-1) * ray.norm(dim=-1)).clamp_min(1e-30)
-            shade = self.ambient + (1 - self.ambient) * cos
+            nrm = torch.linalg.cross(p1 - p0, p2 - p0, dim=-1).t().reshape(3, *shape)
+            ray = [xr.expand_as(du), yr.expand_as(du), torch.ones_like(du)]
+            dot = (nrm[0] * ray[0] + nrm[1] * ray[1] + nrm[2] * ray[2]).abs()
+            den = (nrm.square().sum(0) * (ray[0].square() + ray[1].square() + 1)).sqrt().clamp_(min=1e-30)
+            shade = self.ambient + (1 - self.ambient) * dot / den
             col = [c * shade for c in col]
         col = [c.clamp_(0, 1) for c in col]
         return col, pts
@@ -623,12 +613,12 @@ class Rasterizer:
         N = mesh_index.shape[0]
         with torch.no_grad():
             if dynamic:
-                zbuf, tabf, gidx, vc, gid = self._raster_dynamic(mesh_index, T_cam_obj, K)
+                zbuf, tabf, cidx, gidx, vc, gid = self._raster_dynamic(mesh_index, T_cam_obj, K)
                 overflow = torch.zeros(N, dtype=torch.bool, device=self.device)
             else:
-                zbuf, tabf, vc, gid, overflow = self._raster_static(mesh_index, T_cam_obj, K)
+                zbuf, tabf, cidx, vc, gid, overflow = self._raster_static(mesh_index, T_cam_obj, K)
                 gidx = None
-            return self._outputs(zbuf, tabf, gidx, mesh_index, K, vc, gid, N, dynamic, overflow, out)
+            return self._outputs(zbuf, tabf, cidx, gidx, K, vc, gid, N, dynamic, overflow, out)
 
     def _zbuf(self, N: int) -> Tensor:
         key = ("zbuf", N)
@@ -649,18 +639,20 @@ class Rasterizer:
         vc, gid, fvalid, u, v, z = self._vertex_data(mesh_index, T_cam_obj, K)
         pre = self._prepass(u, v, z, fvalid)
         ok = pre["ok"] & pre["front"] if self.cull_backfaces else pre["ok"]
-        ids = torch.nonzero(ok).squeeze(1)  # drawn triangles entirely in front of the near plane
+        n_ids, f_ids = torch.nonzero(ok.view(N, F)).unbind(1)  # triangles entirely in front of the near plane
+        ids = n_ids * F + f_ids
         crossing = torch.nonzero(fvalid & ~pre["in_front"] & (pre["zmax"] >= self.near)).squeeze(1)
         P, Pc = ids.shape[0], crossing.shape[0]
         tabf = self._workspace("tabf", (_NF, P + Pc), torch.float32)
         tabi = self._workspace("tabi", (_NI, P + Pc), torch.int64)
         g = lambda x: x.index_select(-1, ids)  # noqa: E731
-        args = (g(u), g(v), g(z), g(pre["u_lo"]), g(pre["v_lo"]), g(pre["w"]), g(pre["h"]), g(pre["dv"]), ids // F)
+        args = (g(u), g(v), g(z), g(pre["u_lo"]), g(pre["v_lo"]), g(pre["w"]), g(pre["h"]), g(pre["dv"]), n_ids)
         if Pc == 0:
             self._screen_tables(*args, out_f=tabf, out_i=tabi)
         else:
             tabf[:, :P], tabi[:, :P] = self._screen_tables(*args)
         gidx = ids
+        cidx = f_ids if self.meshes.num_meshes == 1 else mesh_index.index_select(0, n_ids) * F + f_ids
         passes = [(0, P, False)]
         if Pc:
             tri = vc.reshape(-1, 3).index_select(0, gid.index_select(1, crossing).t().reshape(-1)).view(-1, 3, 3)
@@ -673,6 +665,7 @@ class Rasterizer:
             tabf[:, P : P + Pk] = tf.index_select(1, keep)
             tabi[:, P : P + Pk] = ti.index_select(1, keep)
             gidx = torch.cat([ids, crossing.index_select(0, keep)])
+            cidx = torch.cat([cidx, self._colour_rows(mesh_index, crossing.index_select(0, keep))])
             passes.append((P, Pk, True))
         zbuf = self._zbuf(N)
         for start, count, near_test in passes:
@@ -690,7 +683,14 @@ class Rasterizer:
                     R, S = self.levels_r[gc // self._ns], self.levels_s[gc % self._ns]
                     self._raster(zbuf, tabf, tabi, cols[pos : pos + cnt], None, R, S, near_test)
                     pos += cnt
-        return zbuf, tabf, gidx, vc, gid
+        return zbuf, tabf, cidx, gidx, vc, gid
+
+    def _colour_rows(self, mesh_index: Tensor, gidx: Tensor) -> Tensor:
+        """Row of the face colour table (mesh * F + face) for global ids render * F + face."""
+        F = self.meshes.num_faces
+        n = gidx // F
+        f = gidx - n * F
+        return f if self.meshes.num_meshes == 1 else mesh_index.index_select(0, n) * F + f
 
     def _static_tables(self, mesh_index, T_cam_obj, K):
         """Tables for every (render, face): screen-space setup where the triangle is in
@@ -738,36 +738,46 @@ class Rasterizer:
             buf.scatter_(0, slot, all_ids)
             slot_ok = torch.arange(C, device=dev) < (pos[-1:] + 1)
             self._raster(zbuf, tabf, tabi, buf[:C], slot_ok, R, S, True)
-        return zbuf, tabf, vc, gid, dropped.view(N, F).any(1)
+        key = ("cidx", N)
+        if self.meshes.num_meshes > 1:
+            cidx = (mesh_index[:, None] * F + torch.arange(F, device=dev)).reshape(-1)
+        else:
+            if key not in self._cache:
+                self._cache[key] = torch.arange(F, device=dev).repeat(N)
+            cidx = self._cache[key]
+        return zbuf, tabf, cidx, vc, gid, dropped.view(N, F).any(1)
 
-    def _outputs(self, zbuf, tabf, gidx, mesh_index, K, vc, gid, N, dynamic, overflow, out):
+    def _outputs(self, zbuf, tabf, cidx, gidx, K, vc, gid, N, dynamic, overflow, out):
         H, W = self.H, self.W
-        HW = H * W
         dev = self.device
-        mask_flat = zbuf >= _KEY_SHIFT
+        mask = (zbuf >= _KEY_SHIFT).view(N, H, W)
         Kinv = _inv_intrinsics(K.double()).float()
+        kin = [Kinv[:, 0, 0], Kinv[:, 0, 1], Kinv[:, 0, 2], Kinv[:, 1, 1], Kinv[:, 1, 2]]  # (N,) each
         if out is None:
             out = RenderOutput(
                 rgb=torch.empty(N, 3, H, W, device=dev),
                 mask=torch.empty(N, H, W, dtype=torch.bool, device=dev),
                 points_cam=torch.empty(N, 3, H, W, device=dev),
             )
-        out.mask.copy_(mask_flat.view(N, H, W))
+        out.mask.copy_(mask)
         out.overflow = overflow
-        if dynamic:
-            pix = torch.nonzero(mask_flat).squeeze(1)
-            col, pts = self._resolve(zbuf.index_select(0, pix), pix, tabf, gidx, mesh_index, Kinv, vc, gid)
-            n = pix // HW
-            base = pix + n * (2 * HW)  # = n*3*HW + p
-            idx = torch.cat([base, base + HW, base + 2 * HW])
+        if dynamic:  # only the covered pixels
+            n, vq, uq = torch.nonzero(mask).unbind(1)
+            base = (n * 3 * H + vq) * W + uq  # channel 0 of (N,3,H,W)
+            col_id = zbuf.index_select(0, base - n * (2 * H * W)) & _TID_MASK
+            u, v = uq.to(torch.float32), vq.to(torch.float32)
+            col, pts = self._resolve(col_id, u, v, [k.index_select(0, n) for k in kin], tabf, cidx, gidx, vc, gid)
+            idx = torch.cat([base, base + H * W, base + 2 * H * W])
             out.rgb.zero_().view(-1).index_copy_(0, idx, torch.cat(col))
             out.points_cam.zero_().view(-1).index_copy_(0, idx, torch.cat(pts))
-        else:
-            pix = torch.arange(N * HW, device=dev)
-            col, pts = self._resolve(zbuf, pix, tabf, None, mesh_index, Kinv, vc, gid)
-            mf = mask_flat.view(N, 1, HW).to(torch.float32)
-            torch.mul(torch.stack([c.view(N, HW) for c in col], 1), mf, out=out.rgb.view(N, 3, HW))
-            torch.mul(torch.stack([c.view(N, HW) for c in pts], 1), mf, out=out.points_cam.view(N, 3, HW))
+        else:  # every pixel, static shapes
+            col_id = (zbuf & _TID_MASK).view(N, H, W)
+            u = self._arf[W] if W in self._arf else torch.arange(W, device=dev, dtype=torch.float32)
+            v = (self._arf[H] if H in self._arf else torch.arange(H, device=dev, dtype=torch.float32))[:, None]
+            col, pts = self._resolve(col_id, u, v, [k.view(N, 1, 1) for k in kin], tabf, cidx, gidx, vc, gid)
+            mf = mask.to(torch.float32)
+            torch.mul(torch.stack(col, 1), mf[:, None], out=out.rgb)
+            torch.mul(torch.stack(pts, 1), mf[:, None], out=out.points_cam)
         return out
 
     # ------------------------------------------------------------------ helpers
@@ -783,10 +793,13 @@ class Rasterizer:
 
     @torch.no_grad()
     def calibrate(self, mesh_index: Tensor, T_cam_obj: Tensor, K: Tensor, margin: float = 1.5, minimum: float = 1.0) -> list[float]:
-        """Set the static per-render capacities from example poses: margin x the largest
-        per-render count of each tier (at least ``minimum``). Returns the capacities."""
-        counts = self.tier_counts(mesh_index, T_cam_obj, K)
-        self.capacity = [max(float(minimum), math.ceil(float(c) * margin)) for c in counts.amax(0).tolist()]
+        """Set the static capacities from example poses (representative of a call: the
+        slots are shared by the renders of a call, so what counts is the mean number of
+        triangles per render in each tier): margin x that mean, at least ``minimum``
+        (per render). Returns the capacities."""
+        counts = self.tier_counts(mesh_index, T_cam_obj, K).to(torch.float64)
+        mean = (counts.sum(0) / max(1, counts.shape[0])).tolist()
+        self.capacity = [max(float(minimum), c * margin) for c in mean]
         return self.capacity
 
     def candidates_per_render(self) -> float:

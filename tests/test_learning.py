@@ -5,7 +5,8 @@ import torch
 from tests.test_policy import _make_policy
 from tests.toy_data import record_toy_dataset
 
-STEPS = 900
+MAX_STEPS = 1500
+CHECK_EVERY = 150
 
 
 def test_rnd_ai_overfits_a_tiny_dataset(tmp_path):
@@ -30,13 +31,17 @@ def test_rnd_ai_overfits_a_tiny_dataset(tmp_path):
     initial = fixed_noise_loss()
     optimizer = torch.optim.AdamW(policy.get_optim_params(), lr=1e-3, weight_decay=0.0)
     generator = torch.Generator().manual_seed(0)
-    for _ in range(STEPS):
+    final = initial
+    for step in range(1, MAX_STEPS + 1):
         idx = torch.randint(0, len(ds), (8,), generator=generator)
         loss, _ = policy.forward({k: v[idx] for k, v in data.items()})
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
-    final = fixed_noise_loss()
+        if step % CHECK_EVERY == 0:
+            final = fixed_noise_loss()
+            if final < initial / 12:  # a margin over the 10x asked for, then stop early
+                break
     assert final < initial / 10, (initial, final)
 
     # Sampled chunks reproduce the demonstrated ones: MetaWorld-style xyz deltas in units of 1 cm.
