@@ -89,6 +89,7 @@ SCALES: dict[str, dict] = {
     "smoke": dict(
         tasks="reach-v3", demos="3", device="cpu", steps=2, batch_size=2, save_freq=0, log_freq=1,
         num_workers=0, eval_episodes=2, eval_chunk=0, eval_batch_size=2, episode_length=16, grid=3,
+        min_train_slice_s=30,
         method_args={
             "rnd": ["--policy.dim_model=64", "--policy.n_layers=1", "--policy.n_heads=4",
                     "--policy.stats_num_samples=16"],
@@ -102,7 +103,7 @@ SCALES: dict[str, dict] = {
     "gpu": dict(
         tasks="reach-v3,push-v3", demos="10,20", device="cuda", steps=25000, batch_size=32, save_freq=1000,
         log_freq=200, num_workers=4, eval_episodes=50, eval_chunk=10, eval_batch_size=10, episode_length=300,
-        grid=8,
+        grid=8, min_train_slice_s=180,
         method_args={
             "rnd": [],  # paper size from the config: 8 layers x 1024, 16 heads (107M)
             "act": ["--policy.dim_model=768", "--policy.n_heads=12", "--policy.dim_feedforward=3072",
@@ -503,7 +504,9 @@ class Benchmark:
             self._parse_train_log(log, st)
             _write_json(rdir / "run.json", st)
             if r.stopped:
-                raise OutOfTime(f"training {method} {task} n{n} stopped at step {end_step} / {a.steps}")
+                hint = ("" if end_step > step else
+                        f"; no checkpoint was reached in this slice: lower --save-freq ({a.save_freq})")
+                raise OutOfTime(f"training {method} {task} n{n} stopped at step {end_step} / {a.steps}{hint}")
             if r.rc != 0:
                 raise RuntimeError(f"lerobot-train failed (rc {r.rc}); log {log}:\n{r.tail}")
             if end_step <= step:
@@ -953,7 +956,8 @@ def plot_success_vs_demos(res: dict, path: Path) -> None:
         ax.set_ylim(-5, 105)
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("success rate (%), Wilson 95%")
-    axes[0][-1].legend(fontsize=8, loc="best")
+    if axes[0][-1].get_legend_handles_labels()[0]:
+        axes[0][-1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     title = f"{b['scale']} scale, {b['protocol']} protocol"
     if b["scale"] == "smoke":
         title += " (pipeline check, not a result)"
@@ -975,8 +979,12 @@ def plot_heatmap(res: dict, task: str, path: Path) -> None:
     G = len(es["grid_x"])
     dims = es["grid_dims"]
     ms, ns = b["methods"], sorted(b["demos"])
-    fig, axes = plt.subplots(len(ms), len(ns), figsize=(2.8 * len(ns) + 1, 2.6 * len(ms)), squeeze=False)
-    ext = [es["grid_x"][0], es["grid_x"][-1], es["grid_y"][0], es["grid_y"][-1]]
+    fig, axes = plt.subplots(len(ms), len(ns), figsize=(max(5.0, 3.0 * len(ns) + 1.2), 2.7 * len(ms) + 0.6),
+                             squeeze=False)  # fmt: skip
+    gx, gy = es["grid_x"], es["grid_y"]
+    hx = (gx[-1] - gx[0]) / max(1, G - 1) / 2
+    hy = (gy[-1] - gy[0]) / max(1, G - 1) / 2
+    ext = [gx[0] - hx, gx[-1] + hx, gy[0] - hy, gy[-1] + hy]  # cell centres on the grid points
     for i, m in enumerate(ms):
         for j, n in enumerate(ns):
             ax = axes[i][j]
@@ -994,8 +1002,12 @@ def plot_heatmap(res: dict, task: str, path: Path) -> None:
             s = cell_stats(runs, m, task, n)
             ax.set_title(f"{METHODS[m][1]}, {n} demos: {_fmt_cell(s).split(' (')[0]}", fontsize=7)
             ax.tick_params(labelsize=6)
+            ax.set_xlabel(f"placement[{dims[0]}] (m)", fontsize=7)
+            ax.set_ylabel(f"placement[{dims[1]}] (m)", fontsize=7)
+    fig.subplots_adjust(top=1.0 - 0.85 / fig.get_figheight(), hspace=0.45, wspace=0.35)
     fig.colorbar(im, ax=axes, shrink=0.6, label="success")
-    fig.suptitle(f"{task}: success over placement dims {dims} (x marks: training placements)", fontsize=9)
+    fig.suptitle(f"{task}: success per evaluation placement\n(x: training placements; grid over placement "
+                 f"coordinates {dims[0]}, {dims[1]})", fontsize=8)  # fmt: skip
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -1131,8 +1143,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--retry-failed", action="store_true", help="with --resume: run failed runs again")
     p.add_argument("--eval-only", action="store_true", help="evaluate existing checkpoints, train nothing")
     p.add_argument("--max-minutes", type=float, help="time budget of this invocation (exit 3 if work remains)")
-    p.add_argument("--min-train-slice-s", type=float, default=90.0,
-                   help="do not start a training slice with less time left")  # fmt: skip
+    p.add_argument("--min-train-slice-s", type=float,
+                   help="do not start a training slice with less time left (smoke 30, gpu 180); keep "
+                        "--save-freq steps well inside one slice, or no slice ever reaches a checkpoint")  # fmt: skip
     p.add_argument("--eval-chunk-estimate-s", type=float, default=150.0,
                    help="assumed duration of the first evaluation chunk")  # fmt: skip
     p.add_argument("--exit-margin-s", type=float, default=20.0)
@@ -1142,10 +1155,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--launcher", choices=["auto", "cli", "module"], default="auto")
     p.add_argument("--stop-after-checkpoints", type=int, default=0, help=argparse.SUPPRESS)  # resume tests
     p.add_argument("--dry-run", action="store_true", help="print the commands, run nothing")
+    p.add_argument("--reports-only", action="store_true",
+                   help="rewrite results.md and the plots from --out/results.json, run nothing")  # fmt: skip
     a = p.parse_args(argv)
     d = SCALES[a.scale]
     for k in ("tasks", "demos", "eval_episodes", "eval_chunk", "eval_batch_size", "episode_length", "grid",
-              "steps", "batch_size", "save_freq", "log_freq", "num_workers", "device"):  # fmt: skip
+              "steps", "batch_size", "save_freq", "log_freq", "num_workers", "device", "min_train_slice_s"):  # fmt: skip
         if getattr(a, k) is None:
             setattr(a, k, d[k])
     a.tasks = _csv(a.tasks)
@@ -1175,6 +1190,15 @@ def main(argv: list[str] | None = None) -> int:
     os.environ["HF_HUB_OFFLINE"] = "1"
     sys.path.insert(0, str(REPO_ROOT))
     a = parse_args(argv)
+    if a.reports_only:
+        res = json.loads((Path(a.out) / "results.json").read_text())
+        res["rnd_losses"] = rnd_losses(res["runs"])
+        (Path(a.out) / "results.md").write_text(markdown_report(res))
+        plot_success_vs_demos(res, Path(a.out) / "success_vs_demos.png")
+        if res["benchmark"]["protocol"] == "spatial":
+            for task in res["benchmark"]["tasks"]:
+                plot_heatmap(res, task, Path(a.out) / f"heatmap_{task}.png")
+        return EXIT_OK
     return Benchmark(a).run()
 
 

@@ -147,7 +147,7 @@ class RnDConfig(PreTrainedConfig):
     num_inference_steps: int = 4
     final_action_step: bool = True
     per_horizon_action_normalization: bool = False
-    stats_num_samples: int = 512
+    stats_num_samples: int = 256
     min_visible_points: int = 3
     point_update: str = "ddim"
 

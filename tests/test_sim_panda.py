@@ -142,6 +142,7 @@ EXPERT_PLACEMENTS = {
     "lift-cube": [[0.36, 0.12, 0.7], [0.52, -0.10, -0.6]],  # yaw near +-45 degrees
     "push-block": [[0.40, -0.08, 0.5, 0.55, 0.05], [0.50, 0.10, -0.3, 0.35, -0.02]],
     "press-button": [[0.35, -0.12, 0.3], [0.53, 0.13, -0.7]],
+    "pick-place": [[0.38, 0.10, 0.7, 0.52, -0.12]],
 }
 
 
@@ -156,12 +157,12 @@ def test_expert_succeeds(task):
             a = expert.act(env)
             assert a.shape == (7,) and a.dtype == np.float32 and np.abs(a).max() <= 1.0
             _, _, term, trunc, info = env.step(a)
-            if task == "lift-cube" and grasp_yaw is None and a[6] > 0:
+            if task in ("lift-cube", "pick-place") and grasp_yaw is None and a[6] > 0:
                 grasp_yaw = yaw_of_ee(env.ee_pose())
             if term or trunc:
                 break
         assert term and info["is_success"] and not trunc, (task, placement)
-        if task == "lift-cube":  # the gripper turned to the cube's yaw (6-DoF), modulo 90 degrees
+        if grasp_yaw is not None:  # the gripper turned to the cube's yaw (6-DoF), modulo 90 degrees
             d = (grasp_yaw - placement[2] + math.pi / 4) % (math.pi / 2) - math.pi / 4
             assert abs(d) < math.radians(4), (math.degrees(grasp_yaw), placement)
             assert abs(grasp_yaw) > math.radians(30)
@@ -209,7 +210,8 @@ def marker_errors(env, cam, size, seed=0):
     T_we = torch.tensor(env.ee_pose())
     H, W = size
     gu, gv = np.meshgrid(np.linspace(0.15, 0.85, 4) * (W - 1), np.linspace(0.15, 0.85, 4) * (H - 1))
-    uv1 = np.stack([gu.ravel(), gv.ravel(), np.ones(16)], 1) + np.c_[rng.uniform(-2, 2, (16, 2)), np.zeros(16)]
+    jitter = np.c_[rng.uniform(-2, 2, (16, 2)), np.zeros(16)]
+    uv1 = np.stack([gu.ravel(), gv.ravel(), np.ones(16)], 1) + jitter
     depth = rng.uniform(0.15, 1.2, 16)
     p_cam = (np.linalg.inv(cam.K) @ uv1.T).T * depth[:, None]
     T_wc = cam.T_world_cam_at(T_we).numpy()
@@ -219,6 +221,9 @@ def marker_errors(env, cam, size, seed=0):
     seg = segmentation(env, cam.name, size, pts, radii, markers_only=True)
     errs = []
     for i in range(len(pts)):
+        others = np.delete(uv.numpy(), i, axis=0)
+        if np.linalg.norm(others - uv[i].numpy(), axis=1).min() < 12:  # overlaps another marker
+            continue
         m = (seg[..., 0] == 1000 + i) & (seg[..., 1] == SITE)
         if m.sum() < 0.9 * np.pi * 25:  # off screen or behind another marker
             continue
@@ -288,7 +293,8 @@ def test_gripper_mask_iou_and_preset(env_tilted):
     T_we = emb.ee_pose_source.ee_pose(state)
     np.testing.assert_allclose(T_we.numpy(), env.ee_pose(), atol=1e-6)
     assert emb.ee_pose_source.gripper(state).item() < 0.05  # open
-    for cam_name, roots, mesh in (("front", (GRIPPER_ROOT_BODY,), "full"), ("wrist", FINGER_BODIES, "fingers")):
+    cases = (("front", (GRIPPER_ROOT_BODY,), "full"), ("wrist", FINGER_BODIES, "fingers"))
+    for cam_name, roots, mesh in cases:
         key = f"observation.images.{cam_name}"
         assert emb.camera_mesh[key] == mesh
         cam = emb.cameras[key]
@@ -421,6 +427,21 @@ def test_recorder_writes_loadable_dataset(tmp_path):
     # every episode ends pressed (success) plus the extra frames
     n0 = ds.meta.episodes["dataset_to_index"][0]
     assert rec["attempts"][0]["num_frames"] == n0 == rec["attempts"][0]["steps_to_success"] + 2
+
+
+def test_clear_error_without_gym_hil(monkeypatch):
+    """The module imports (and registers the env ids / ``rnd_panda``) without gym-hil; building a scene
+    then fails with the install command."""
+    import importlib.util
+
+    from lerobot_rnd.sim import panda_env
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(
+        panda_env.importlib.util, "find_spec", lambda name, *a: None if name == "gym_hil" else real(name, *a)
+    )
+    with pytest.raises(ImportError, match="pip install --no-deps gym-hil==0.1.14"):
+        panda_env.gym_hil_assets_dir()
 
 
 def test_gym_hil_envs_step_on_installed_mujoco():

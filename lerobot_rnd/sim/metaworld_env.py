@@ -527,6 +527,7 @@ class RnDMetaWorldEnvConfig(EnvConfig):
     flip_cameras: list[str] = field(default_factory=list)
     use_lerobot_corner2_pos: bool = True
     placement: str = "random"
+    placements: list[list[float]] | None = None  # MetaWorld rand_vecs cycled through with placement="fixed"
     terminate_on_success: bool = True
     state_layout: str = "pos_grip_quat"
     features: dict[str, PolicyFeature] = field(
@@ -566,6 +567,7 @@ class RnDMetaWorldEnvConfig(EnvConfig):
             "corner2_pos": LEROBOT_CORNER2_POS if self.use_lerobot_corner2_pos else None,
             "episode_length": self.episode_length,
             "placement": self.placement,
+            "placements": self.placements,
             "terminate_on_success": self.terminate_on_success,
             "render_mode": self.render_mode,
             "obs_type": self.obs_type,

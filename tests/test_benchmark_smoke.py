@@ -1,0 +1,143 @@
+"""benchmarks/run_benchmark.py: statistics and reports (fast), the commands it would run (fast, dry run), and
+the whole pipeline at smoke scale with a stop-and-resume (slow: minutes of training and MuJoCo evaluation)."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPT = REPO / "benchmarks" / "run_benchmark.py"
+
+
+def _load():
+    spec = importlib.util.spec_from_file_location("run_benchmark", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules["run_benchmark"] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+rb = _load()
+
+
+def test_wilson_interval():
+    assert math.isnan(rb.wilson_interval(0, 0)[0])
+    lo, hi = rb.wilson_interval(0, 2)
+    assert lo == 0.0 and hi == pytest.approx(0.6576, abs=1e-3)
+    lo, hi = rb.wilson_interval(25, 50)
+    assert lo == pytest.approx(0.3664, abs=1e-3) and hi == pytest.approx(0.6336, abs=1e-3)
+    lo, hi = rb.wilson_interval(50, 50)
+    assert hi == 1.0 and lo == pytest.approx(0.9287, abs=1e-3)
+
+
+def _fake_results(tmp_path: Path) -> dict:
+    runs = []
+    rates = {"rnd_ai": (40, 45), "act": (48, 30), "diffusion": (10, 20)}  # successes of 50 at 10 / 20 demos
+    for m, ks in rates.items():
+        for n, k in zip((10, 20), ks, strict=True):
+            succ = [True] * k + [False] * (50 - k)
+            lo, hi = rb.wilson_interval(k, 50)
+            runs.append({"method": m, "label": rb.METHODS[m][1], "task": "reach-v3", "demos": n, "seed": 0,
+                         "protocol": "random", "status": "done", "steps": 100, "batch_size": 8, "steps_done": 100,
+                         "n_params": 1_000_000, "train_seconds": 10.0, "train_wall_seconds": 20.0,
+                         "train_slices": [], "eval_episodes": 50, "eval_episodes_planned": 50, "successes": k,
+                         "success_rate": k / 50, "ci95": [lo, hi], "eval_seconds": 5.0,
+                         "per_episode_success": succ, "eval_seeds": list(range(1000, 1050)),
+                         "checkpoint": None, "run_dir": "x", "commands": {}, "error": None})  # fmt: skip
+    return {
+        "benchmark": {"scale": "gpu", "protocol": "random", "tasks": ["reach-v3"], "demos": [10, 20],
+                      "methods": list(rates), "seeds": [0], "device": "cuda", "complete": True,
+                      "written": "now", "host": {"platform": "p", "cpus": 2, "cuda": None, "torch": "t",
+                                                 "lerobot": "0.4.4"}},
+        "settings": {"matched": {"steps": 100, "batch_size": 8}, "record_seed": 0, "eval_seed": 1000,
+                     "eval_episodes_per_cell": 50, "episode_length": 300, "eval_placements": "seeded",
+                     "method_args": {m: [] for m in rates},
+                     "config_files": {m: f"policies_config/metaworld/{m}.json" for m in rates}},
+        "datasets": {}, "eval_sets": {}, "runs": runs, "rnd_losses": rb.rnd_losses(runs),
+    }  # fmt: skip
+
+
+def test_reports_from_results(tmp_path):
+    res = _fake_results(tmp_path)
+    losses = res["rnd_losses"]
+    # ACT beats R&D-AI at 10 demos (48 vs 40 of 50: intervals overlap), nobody beats it at 20 demos
+    assert [(x["demos"], x["baseline"], x["significant"]) for x in losses] == [(10, "act", False)]
+    md = rb.markdown_report(res)
+    assert "| R&D-AI | 80% [67–89] (40/50) | 90% [79–96] (45/50) | 85% [77–91] (85/100) |" in md
+    assert "Where R&D loses" in md and "ACT 96% > R&D-AI 80% (within the intervals)" in md
+    rb.plot_success_vs_demos(res, tmp_path / "plot.png")
+    assert (tmp_path / "plot.png").stat().st_size > 1000
+
+
+def _dry_run(tmp_path, *extra):
+    out = subprocess.run(
+        [sys.executable, str(SCRIPT), "--scale", "smoke", "--out", str(tmp_path / "out"),
+         "--work-dir", str(tmp_path / "work"), "--data-dir", str(tmp_path / "data"), "--dry-run", *extra],
+        capture_output=True, text=True, timeout=300, cwd=REPO,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stdout + out.stderr
+    return [line[2:] for line in out.stdout.splitlines() if line.startswith("$ ")]
+
+
+def test_dry_run_commands(tmp_path):
+    cmds = _dry_run(tmp_path)
+    rec = [c for c in cmds if "lerobot-rnd-record" in c]
+    train = [c for c in cmds if "lerobot-train" in c]
+    ev = [c for c in cmds if "lerobot-eval" in c]
+    assert len(rec) == 1 and len(train) == 5 and len(ev) == 5
+    assert "--seed 0" in rec[0]
+    for c in train:
+        assert "--policy.push_to_hub=false" in c and "--steps=2" in c and "--seed=0" in c
+    act = next(c for c in train if "act.json" in c)
+    assert "--policy.pretrained_backbone_weights=null" in act and "--policy.chunk_size=8" in act
+    dp = next(c for c in train if "diffusion.json" in c)
+    assert "--policy.horizon=12" in dp and "--policy.down_dims=[32,64]" in dp
+    for c in ev:
+        assert "--seed=1000" in c and "--env.type=rnd_mw" in c and "--eval.n_episodes=2" in c
+
+
+def test_eval_seeds_must_not_include_the_recording_seed(tmp_path):
+    a = rb.parse_args(["--scale", "smoke", "--record-seed", "1001", "--out", str(tmp_path / "o"),
+                       "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip
+    with pytest.raises(ValueError, match="recording seed"):
+        rb.Benchmark(a).eval_set("reach-v3")
+
+
+@pytest.mark.slow
+def test_smoke_pipeline_with_resume(tmp_path):
+    """Record 3 demos, train R&D-AI and ACT for 4 steps (stopped after the first checkpoint, then resumed),
+    evaluate 1 episode each, and check results.json / results.md / the plot; a last call skips everything."""
+    base = [sys.executable, str(SCRIPT), "--scale", "smoke", "--methods", "rnd_ai,act",
+            "--out", str(tmp_path / "out"), "--work-dir", str(tmp_path / "work"),
+            "--data-dir", str(tmp_path / "data"), "--steps", "4", "--save-freq", "2",
+            "--eval-episodes", "1", "--episode-length", "10"]  # fmt: skip
+
+    def call(*extra):
+        return subprocess.run(base + list(extra), capture_output=True, text=True, timeout=1500, cwd=REPO)
+
+    r = call("--stop-after-checkpoints", "1")
+    assert r.returncode == 3, r.stdout[-3000:] + r.stderr[-3000:]
+    r = call("--resume")
+    assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
+    res = json.loads((tmp_path / "out" / "results.json").read_text())
+    assert res["benchmark"]["complete"]
+    runs = {x["method"]: x for x in res["runs"]}
+    assert set(runs) == {"rnd_ai", "act"}
+    for x in runs.values():
+        assert x["status"] == "done" and x["steps_done"] == 4 and x["eval_episodes"] == 1
+        assert x["eval_seeds"] == [1000] and x["n_params"] > 0 and x["train_seconds"] > 0
+        assert len(x["ci95"]) == 2
+    assert [s["end_step"] for s in runs["rnd_ai"]["train_slices"]] == [2, 4]
+    assert "train_resume" in runs["rnd_ai"]["commands"]
+    assert res["eval_sets"]["reach-v3"]["n_equal_to_a_train_placement"] == 0
+    assert (tmp_path / "out" / "success_vs_demos.png").exists()
+    assert "| R&D-AI |" in (tmp_path / "out" / "results.md").read_text()
+    r = call("--resume")
+    assert r.returncode == 0 and "lerobot-train" not in r.stdout
