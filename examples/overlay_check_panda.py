@@ -11,7 +11,7 @@ yaw), then for each camera (``front``, ``wrist``) draws
   4. the gripper rendered at the EE poses the expert reaches next (every ``--stride`` steps, like an R&D
      action chunk) over the current image.
 
-    MUJOCO_GL=egl python examples/overlay_check_panda.py [--task lift-cube] [--steps 14] \\
+    MUJOCO_GL=egl python examples/overlay_check_panda.py [--task lift-cube] [--steps 9] \\
         [--out outputs/overlay_panda.png]
 """
 
@@ -96,9 +96,9 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--task", default="lift-cube")
     p.add_argument("--seed", type=int, default=3)
-    p.add_argument("--steps", type=int, default=8, help="expert steps before the snapshot")
+    p.add_argument("--steps", type=int, default=9, help="expert steps before the snapshot")
     p.add_argument("--horizon", type=int, default=4, help="future poses drawn in panel 4")
-    p.add_argument("--stride", type=int, default=3, help="steps between drawn future poses")
+    p.add_argument("--stride", type=int, default=2, help="steps between drawn future poses")
     p.add_argument("--size", type=int, default=128, help="image size")
     p.add_argument("--scale", type=int, default=3, help="upscaling of the images in the PNG")
     p.add_argument("--out", default="outputs/overlay_panda.png")
@@ -112,11 +112,11 @@ def main() -> None:
     emb = env.embodiment()
     state_now = torch.as_tensor(obs["agent_pos"], dtype=torch.float64)
     images = {c: obs["pixels"][c].copy() for c in env.camera_names}
+    roots = {"fingers": FINGER_BODIES, "full": (GRIPPER_ROOT_BODY,)}
     gt_masks = {
-        c: mujoco_gripper_mask(env, c, FINGER_BODIES if emb.camera_mesh[f"observation.images.{c}"] == "fingers"
-                               else (GRIPPER_ROOT_BODY,))
+        c: mujoco_gripper_mask(env, c, roots[emb.camera_mesh[f"observation.images.{c}"]])
         for c in env.camera_names
-    }  # fmt: skip
+    }
     future_states = []
     for _ in range(a.horizon):
         for _ in range(a.stride):

@@ -362,11 +362,13 @@ class Rasterizer:
         """Pixel-centre range (float) of continuous boxes, clamped to the image.
         Returns u_lo, v_lo, w, h; w or h <= 0 (or NaN) means no pixel centre."""
         H, W = self.H, self.W
-        u_lo = torch.ceil(umin - 1e-3).clamp_(0, W - 1)
-        v_lo = torch.ceil(vmin - 1e-3).clamp_(0, H - 1)
+        # The extent is measured from the box start clamped at 0 only, so that a box entirely right of
+        # (below) the image gets w (h) <= 0; the start is clamped into the image afterwards for indexing.
+        u_lo = torch.ceil(umin - 1e-3).clamp_(min=0)
+        v_lo = torch.ceil(vmin - 1e-3).clamp_(min=0)
         w = torch.floor(umax + 1e-3).clamp_(-1, W - 1).sub_(u_lo).add_(1)
         h = torch.floor(vmax + 1e-3).clamp_(-1, H - 1).sub_(v_lo).add_(1)
-        return u_lo, v_lo, w, h
+        return u_lo.clamp_(max=W - 1), v_lo.clamp_(max=H - 1), w, h
 
     def _prepass(self, u: Tensor, v: Tensor, z: Tensor, fvalid: Tensor):
         """Per-triangle box and flags from (3, P) per-vertex pixel u, v and depth z.
@@ -409,7 +411,10 @@ class Rasterizer:
         e = torch.stack([x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0], 0)  # edge fns at origin
         area2 = e[0] + e[1] + e[2]
         sig = (1.0 / area2) / z  # (3,P)
-        lam0 = e * sig
+        # A triangle that is degenerate in float32 relative to its box origin is never drawn (lam0 < 0).
+        degenerate = (area2 == 0) | ~torch.isfinite(sig).all(0)
+        sig = torch.where(degenerate[None], torch.zeros_like(sig), sig)
+        lam0 = torch.where(degenerate[None], torch.full_like(e, -1.0), e * sig)
         A = (v.roll(-1, 0) - v.roll(-2, 0)) * sig
         B = (u.roll(-2, 0) - u.roll(-1, 0)) * sig
         # widest row = 2 area / height; pixel centres in it <= floor(width) + 1

@@ -373,3 +373,15 @@ def test_cuda_static_path_graph_capture_matches_cpu():
         assert not out.overflow.any()
         assert torch.equal(out.mask.cpu(), ref.mask)
         assert torch.allclose(out.points_cam.cpu(), ref.points_cam, atol=1e-4)
+
+
+def test_regression_degenerate_triangle_right_of_the_image_is_not_drawn():
+    """A nearly degenerate triangle entirely right of the image once produced an int64-min pixel index."""
+    V = torch.tensor([[0.006500000134110451, 0.0681999996304512, -0.04960000142455101], [0.007000000216066837, 0.0681999996304512, -0.05009999871253967], [0.007000000216066837, 0.06907100230455399, -0.04998999834060669]], dtype=torch.float32)
+    T = torch.tensor([[[0.22895488142967224, 0.9734323024749756, -0.0030350303277373314, -0.008854784071445465], [-0.9734364748001099, 0.22895674407482147, 0.0002842620015144348, 0.04863381385803223], [0.000971602275967598, 0.0028893272392451763, 0.9999952912330627, 0.10129263997077942], [0.0, 0.0, 0.0, 1.0]]], dtype=torch.float32)
+    K = torch.tensor([[[164.5757293701172, 0.0, 63.5], [0.0, 164.5757293701172, 63.5], [0.0, 0.0, 1.0]]], dtype=torch.float32)
+    meshes = MeshBatch.from_meshes([(V, torch.tensor([[0, 1, 2]]), None)])
+    out = render(meshes, torch.zeros(1, dtype=torch.long), T, K, (128, 128))
+    assert not out.mask.any()
+    static = Rasterizer(meshes, (128, 128))(torch.zeros(1, dtype=torch.long), T, K)
+    assert not static.mask.any() and not static.overflow.any()

@@ -1,7 +1,8 @@
 """Simulated environments, scripted experts and the demonstration recorder.
 
 Importing this package registers the gymnasium ids ``gym_rnd_metaworld/<task>`` (every MetaWorld V3
-task) and LeRobot's ``--env.type=rnd_mw``. MuJoCo / MetaWorld are imported only when an env is built.
+task) and LeRobot's ``--env.type=rnd_mw``, and the Panda suite's ``gym_rnd_panda/<task>`` and
+``--env.type=rnd_panda`` (its scenes need gym-hil's assets: ``pip install --no-deps gym-hil==0.1.14``). MuJoCo / MetaWorld are imported only when an env is built.
 Headless machines default to ``MUJOCO_GL=egl`` (set MUJOCO_GL=osmesa to override).
 """
 
@@ -19,6 +20,8 @@ from lerobot_rnd.sim.metaworld_env import (
 )
 
 register_gym_envs()
+
+from lerobot_rnd.sim import panda_env  # noqa: E402,F401  (registers gym_rnd_panda/* and rnd_panda)
 
 __all__ = [
     "GYM_NAMESPACE",

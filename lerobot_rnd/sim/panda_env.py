@@ -9,6 +9,9 @@
   table; success = block centre within :data:`PUSH_SUCCESS_RADIUS` (3 cm, horizontally) of the disc centre.
 - ``press-button``: a red push button (spring-loaded, 15 mm travel) on a grey box at a random position
   and yaw; success = button pressed down by more than :data:`BUTTON_SUCCESS_DEPTH` (1 cm).
+- ``pick-place``: pick the 4 cm cube (random position and yaw) and put it down on a green target disc;
+  success = cube resting on the table (centre below 2.5 cm) within :data:`PLACE_SUCCESS_RADIUS` (3 cm)
+  of the disc centre with the gripper opened (opening > 0.5).
 
 The scene is gym-hil's Panda with the Robotiq 2F-85 (``gym_hil/assets/panda.xml``, gym-hil 0.1.14 is used
 only for its assets) plus a floor, lights, a static ``front`` camera, the task objects and a mocap body
@@ -22,16 +25,17 @@ Observation (LeRobot's ``preprocess_observation`` maps it to ``observation.image
      "agent_pos": float32 (8,) = [ee x, y, z (m, world), ee quat w, x, y, z, gripper opening]}
 
 - EE frame = MuJoCo site ``pinch`` of the Robotiq (between the finger pads, about 4 mm above the pad
-  tips; z along the fingers, the fingers open along y; pointing down: quat (0, 1, 0, 0)). This is the
+  tips when open, 18 mm when closed; z along the fingers, the fingers open along y; pointing down:
+  quat (0, 1, 0, 0)). This is the
   frame the controller drives to the ``ee_target`` mocap pose.
 - quaternion: wxyz, unit, sign chosen so that its dot product with the home orientation (0, 1, 0, 0) is
   >= 0 (continuous for every yaw within +-180 degrees of home).
 - gripper opening: 1 - (mean Robotiq driver joint angle) / 0.8 rad, clipped to [0, 1]: 1 = fully open
-  (85 mm), 0 = fully closed (about 0.45 when closed on the 4 cm cube).
+  (85 mm), 0 = fully closed (about 0.42 when closed on the 4 cm cube).
 
-Cameras: ``front`` (static, looking at the workspace from the front, fovy 45) and ``wrist`` (gym-hil's
-``handcam_rgb`` on the arm's flange: rigid on the hand, fovy 42.5, sees the finger tips). Fast rendering:
-no multisampling, shadows or reflections.
+Cameras: ``front`` (static, in front of the robot looking back at the workspace, fovy 50) and
+``wrist`` (gym-hil's ``handcam_rgb`` on the arm's flange: rigid on the hand, fovy 42.5, sees the finger
+tips). Fast rendering: no multisampling, shadows or reflections, decimated arm meshes.
 
 Action (7,), clipped to [-1, 1], one control step = ``control_dt`` = 0.1 s (10 Hz, 50 physics steps)::
 
@@ -45,13 +49,16 @@ Action (7,), clipped to [-1, 1], one control step = ``control_dt`` = 0.1 s (10 H
   ``255 * (g + 1) / 2``).
 
 This is exactly ``lerobot_rnd.action_adapters.EEDeltaAdapter(pos_scale=0.02, rot_scale=0.1,
-frame="world", clip=1.0)`` (:func:`panda_action_adapter`), up to the controller's tracking lag (the EE
-follows the mocap target within a few mm / a degree at rest, about 1 cm while moving at full speed).
+frame="world", clip=1.0)`` (:func:`panda_action_adapter`) for the controller's target pose; the real EE
+follows it with the controller's lag (below 1 mm / 0.1 degree at rest, about 18 mm / 7 degrees behind
+while moving at full speed: the EE poses reached k steps later match the adapter's prediction to 3 mm
+(k=1) ... 14 mm (k=8) on average on expert demonstrations).
 
 Placement (:meth:`RnDPandaEnv.placement_space`): ``lift-cube`` / ``press-button``: [x, y, yaw] of the
-cube / button box; ``push-block``: [block x, y, yaw, target x, y]. ``reset(options={"placement": vec})``
-for an exact placement; otherwise ``placement="random"`` draws from the range with the env's seeded RNG
-(``reset(seed=...)`` makes it reproducible), or ``placement="fixed"`` cycles through ``placements``.
+cube / button box; ``push-block`` / ``pick-place``: [block / cube x, y, yaw, target x, y].
+``reset(options={"placement": vec})`` for an exact placement; otherwise ``placement="random"`` draws
+from the range with the env's seeded RNG (``reset(seed=...)`` makes it reproducible), or
+``placement="fixed"`` cycles through ``placements``.
 Episodes start with the gripper open, pointing down, at :data:`START_POS`.
 """
 
@@ -76,11 +83,12 @@ from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 logger = logging.getLogger(__name__)
 
 GYM_NAMESPACE = "gym_rnd_panda"
-PANDA_TASKS = ("lift-cube", "push-block", "press-button")
+PANDA_TASKS = ("lift-cube", "push-block", "press-button", "pick-place")
 TASK_DESCRIPTIONS = {
     "lift-cube": "Pick up the purple cube and lift it",
     "push-block": "Push the blue block onto the green target",
     "press-button": "Press the red button",
+    "pick-place": "Put the purple cube on the green target",
 }
 GYM_HIL_VERSION = "0.1.14"
 INSTALL_HINT = f"pip install --no-deps gym-hil=={GYM_HIL_VERSION}  (only its MuJoCo assets are used)"
@@ -93,10 +101,11 @@ ACTION_NAMES = ["dx", "dy", "dz", "drx", "dry", "drz", "gripper"]
 
 EE_SITE = "pinch"
 GRIPPER_ROOT_BODY = "base_mount"
-FINGER_BODIES = ("right_driver", "right_spring_link", "left_driver", "left_spring_link")
-#: faces of the embodiment's gripper meshes. The Robotiq's thin finger links need more than the usual
-#: 1500 with the grid-clustering simplifier (mask IoU vs MuJoCo at 128 px, front / wrist: 1500 faces
-#: 0.80 / 0.64, 3000: 0.92 / 0.92, 4000: 0.96 / 0.98, unsimplified 0.99 / 0.99).
+#: the Robotiq's fingers (follower links with their pads): the "fingers" mesh drawn in the wrist camera
+FINGER_BODIES = ("right_follower", "left_follower")
+#: faces of the embodiment's gripper meshes. The Robotiq's thin links need more than the usual 1500
+#: with the grid-clustering simplifier (mask IoU vs MuJoCo at 128 px, front "full" / wrist "fingers":
+#: 1500 faces 0.82 / 0.91, 2000: 0.87 / 1.0, 4000: 0.96 / 1.0, unsimplified 0.99 / 1.0).
 GRIPPER_MESH_FACES = 4000
 #: Robotiq driver joint range (0 = open, 0.8 rad = closed)
 DRIVER_CLOSED = 0.8
@@ -116,9 +125,9 @@ START_POS = np.array([0.45, 0.0, 0.22])
 #: gym-hil's joint home (also the controller's null-space target)
 PANDA_HOME = np.array([0.0, 0.195, 0.0, -2.43, 0.0, 2.62, 0.785])
 #: static front camera: position and the point it looks at
-FRONT_CAMERA_POS = (1.1, 0.0, 0.65)
-FRONT_CAMERA_LOOKAT = (0.40, 0.0, 0.09)
-FRONT_CAMERA_FOVY = 45.0
+FRONT_CAMERA_POS = (0.95, 0.0, 0.55)
+FRONT_CAMERA_LOOKAT = (0.42, 0.0, 0.08)
+FRONT_CAMERA_FOVY = 50.0
 
 CUBE_HALF = 0.02
 BLOCK_HALF = (0.025, 0.025, 0.02)
@@ -130,6 +139,7 @@ BUTTON_TRAVEL = 0.015
 
 LIFT_SUCCESS_HEIGHT = 0.08
 PUSH_SUCCESS_RADIUS = 0.03
+PLACE_SUCCESS_RADIUS = 0.03
 BUTTON_SUCCESS_DEPTH = 0.01
 
 PLACEMENT_RANGES = {
@@ -141,7 +151,13 @@ PLACEMENT_RANGES = {
         np.array([0.54, 0.12, math.pi / 4, 0.58, 0.2]),
     ),
     "press-button": (np.array([0.33, -0.15, -math.pi / 4]), np.array([0.55, 0.15, math.pi / 4])),
+    # cube x, y, yaw, target x, y
+    "pick-place": (
+        np.array([0.35, -0.15, -math.pi / 4, 0.33, -0.18]),
+        np.array([0.55, 0.15, math.pi / 4, 0.57, 0.18]),
+    ),
 }
+PLACE_MIN_DISTANCE = 0.10
 PUSH_MIN_DISTANCE = 0.10
 PUSH_MAX_DISTANCE = 0.22
 
@@ -430,8 +446,9 @@ def _assets(simplify: bool = True) -> dict[str, bytes]:
             for key, raw in list(assets.items()):
                 folder, ext = key.split("/", 1)[0], key.rsplit(".", 1)[-1].lower()
                 cap = MESH_FACE_CAPS.get(folder)
-                if cap is None or ext not in ("obj", "stl") or (folder == "franka_emika_panda" and ext == "stl"):
-                    continue  # the Panda's .stl files are collision meshes (never drawn)
+                panda_collision = folder == "franka_emika_panda" and ext == "stl"  # never drawn
+                if cap is None or ext not in ("obj", "stl") or panda_collision:
+                    continue
                 tm = trimesh.load(io.BytesIO(raw), file_type=ext, force="mesh", process=False)
                 if len(tm.faces) <= cap:
                     continue
@@ -443,9 +460,14 @@ def _assets(simplify: bool = True) -> dict[str, bytes]:
 
 
 def _task_xml(task: str) -> str:
-    if task == "lift-cube":
+    if task in ("lift-cube", "pick-place"):
         h = CUBE_HALF
-        return f"""
+        target = "" if task == "lift-cube" else f"""
+    <body name="target_marker" pos="0.45 0.1 0">
+      <geom name="target_marker" type="cylinder" size="{TARGET_RADIUS + 0.01} 0.0005" pos="0 0 0.0005"
+            contype="0" conaffinity="0" rgba=".1 .8 .2 1"/>
+    </body>"""
+        return target + f"""
     <body name="cube" pos="0.45 0 {h}">
       <freejoint name="cube"/>
       <geom name="cube" type="box" size="{h} {h} {h}" mass="0.1" rgba=".6 .3 .6 1"/>
@@ -482,7 +504,9 @@ def _task_contact_xml(task: str) -> str:
     return ""
 
 
-def scene_xml(task: str, offscreen_size: int = 640, front_pos=FRONT_CAMERA_POS, front_lookat=FRONT_CAMERA_LOOKAT) -> str:
+def scene_xml(
+    task: str, offscreen_size: int = 640, front_pos=FRONT_CAMERA_POS, front_lookat=FRONT_CAMERA_LOOKAT
+) -> str:
     """MJCF of a task scene (includes gym-hil's ``panda.xml``; load with :func:`build_model`)."""
     xy = " ".join(f"{v:.6f}" for v in _lookat_xyaxes(front_pos, front_lookat))
     fp = " ".join(f"{v:.6f}" for v in front_pos)
@@ -491,18 +515,19 @@ def scene_xml(task: str, offscreen_size: int = 640, front_pos=FRONT_CAMERA_POS, 
   <option timestep="{PHYSICS_DT}" noslip_iterations="5" noslip_tolerance="0"/>
   <statistic center="0.4 0 0.2" extent="0.8"/>
   <visual>
-    <headlight diffuse=".4 .4 .4" ambient=".5 .5 .5"/>
+    <headlight diffuse=".4 .4 .4" ambient=".4 .4 .4"/>
     <global azimuth="160" elevation="-20" offwidth="{offscreen_size}" offheight="{offscreen_size}"/>
     <quality offsamples="0"/>
   </visual>
   <asset>
     <texture type="skybox" builtin="gradient" rgb1=".3 .5 .7" rgb2="0 0 0" width="32" height="512"/>
-    <texture name="grid" type="2d" builtin="checker" width="512" height="512" rgb1=".1 .2 .3" rgb2=".2 .3 .4"/>
+    <texture name="grid" type="2d" builtin="checker" width="512" height="512"
+             rgb1=".1 .2 .3" rgb2=".2 .3 .4"/>
     <material name="grid" texture="grid" texrepeat="2 2" texuniform="true" reflectance="0"/>
   </asset>
   <worldbody>
     <camera name="front" pos="{fp}" xyaxes="{xy}" fovy="{FRONT_CAMERA_FOVY}"/>
-    <light pos="0 0 3" dir="0 0 -1" diffuse="1 1 1" specular=".3 .3 .3"/>
+    <light pos="0 0 3" dir="0 0 -1" diffuse=".6 .6 .6" specular=".3 .3 .3"/>
     <light pos="1.2 -0.5 1.0" dir="-0.7 0.4 -0.6" diffuse=".6 .6 .6" specular=".2 .2 .2"/>
     <geom name="floor" size="3 3 0.01" type="plane" material="grid"/>
     <body name="ee_target" pos="{START_POS[0]} {START_POS[1]} {START_POS[2]}" quat="0 1 0 0" mocap="true"/>
@@ -623,7 +648,9 @@ class RnDPandaEnv(gym.Env):
 
         sizes = [*self.image_size, *(self.visualization_size or ())]
         self.simplify_meshes = bool(simplify_meshes)
-        self.model = build_model(self.task, offscreen_size=max(640, *sizes), simplify_meshes=self.simplify_meshes)
+        self.model = build_model(
+            self.task, offscreen_size=max(640, *sizes), simplify_meshes=self.simplify_meshes
+        )
         self.data = mujoco.MjData(self.model)
         self.fast_render = bool(fast_render)
         if self.fast_render:
@@ -692,7 +719,8 @@ class RnDPandaEnv(gym.Env):
 
     def is_valid_placement(self, placement: Sequence[float]) -> bool:
         """Whether the placement has the right size, lies in the range (1 mm tolerance), and (push-block)
-        the target is 10-22 cm from the block with the pushing start point inside the workspace."""
+        the target is 10-22 cm from the block with the pushing start point inside the workspace /
+        (pick-place) at least 10 cm from the cube."""
         vec = np.asarray(placement, dtype=np.float64)
         low, high = PLACEMENT_RANGES[self.task]
         if vec.shape != low.shape or not np.all(np.isfinite(vec)):
@@ -705,28 +733,38 @@ class RnDPandaEnv(gym.Env):
             if not PUSH_MIN_DISTANCE <= dist <= PUSH_MAX_DISTANCE:
                 return False
             start = vec[0:2] - d / dist * 0.08
-            if np.any(start < WORKSPACE_BOUNDS[0, :2] + 0.02) or np.any(start > WORKSPACE_BOUNDS[1, :2] - 0.02):
+            lo, hi = WORKSPACE_BOUNDS[0, :2] + 0.02, WORKSPACE_BOUNDS[1, :2] - 0.02
+            if np.any(start < lo) or np.any(start > hi):
                 return False
+        if self.task == "pick-place" and np.linalg.norm(vec[3:5] - vec[0:2]) < PLACE_MIN_DISTANCE:
+            return False
         return True
 
     def _check_placement(self, vec: np.ndarray) -> np.ndarray:
         low = PLACEMENT_RANGES[self.task][0]
         if vec.shape != low.shape:
-            raise ValueError(f"{self.task}: placement must have {low.shape[0]} numbers, got shape {vec.shape}")
+            raise ValueError(
+                f"{self.task}: placement must have {low.shape[0]} numbers, got shape {vec.shape}"
+            )
         if not self.is_valid_placement(vec):
             low, high = PLACEMENT_RANGES[self.task]
             raise ValueError(
                 f"{self.task}: invalid placement {vec.tolist()} (range {low.tolist()} .. {high.tolist()}"
-                + (f", block-target distance {PUSH_MIN_DISTANCE}-{PUSH_MAX_DISTANCE} m)" if self.task == "push-block" else ")")
+                + {
+                    "push-block": f", block-target distance {PUSH_MIN_DISTANCE}-{PUSH_MAX_DISTANCE} m)",
+                    "pick-place": f", cube-target distance >= {PLACE_MIN_DISTANCE} m)",
+                }.get(self.task, ")")
             )
         return vec
 
     def _apply_placement(self, vec: np.ndarray) -> None:
         m, d = self.model, self.data
-        if self.task == "lift-cube":
+        if self.task in ("lift-cube", "pick-place"):
             adr = m.joint("cube").qposadr[0]
             d.qpos[adr : adr + 3] = [vec[0], vec[1], CUBE_HALF]
             d.qpos[adr + 3 : adr + 7] = yaw_quat(vec[2])
+            if self.task == "pick-place":
+                m.body_pos[m.body("target_marker").id] = [vec[3], vec[4], 0.0]
         elif self.task == "push-block":
             adr = m.joint("block").qposadr[0]
             d.qpos[adr : adr + 3] = [vec[0], vec[1], BLOCK_HALF[2]]
@@ -858,20 +896,21 @@ class RnDPandaEnv(gym.Env):
         """Centre of the cube / block, or (press-button) the centre of the button's top face when not
         pressed, in the world."""
         d = self.data
-        if self.task == "lift-cube":
+        if self.task in ("lift-cube", "pick-place"):
             return d.body("cube").xpos.copy()
         if self.task == "push-block":
             return d.body("block").xpos.copy()
-        return d.body("button_box").xpos.copy() + np.array([0, 0, 2 * (BUTTON_HOUSING_HALF[2] + BUTTON_HALF_HEIGHT)])
+        top = 2 * (BUTTON_HOUSING_HALF[2] + BUTTON_HALF_HEIGHT)
+        return d.body("button_box").xpos.copy() + np.array([0.0, 0.0, top])
 
     def object_quat(self) -> np.ndarray:
         d = self.data
-        name = {"lift-cube": "cube", "push-block": "block", "press-button": "button_box"}[self.task]
+        name = {"push-block": "block", "press-button": "button_box"}.get(self.task, "cube")
         return d.body(name).xquat.copy()
 
     def target_pos(self) -> np.ndarray | None:
-        """push-block: the target disc centre (on the table)."""
-        if self.task != "push-block":
+        """push-block / pick-place: the target disc centre (on the table)."""
+        if self.task not in ("push-block", "pick-place"):
             return None
         return self.data.body("target_marker").xpos.copy()
 
@@ -887,6 +926,13 @@ class RnDPandaEnv(gym.Env):
             return bool(self.object_pos()[2] - self._object_z0 > LIFT_SUCCESS_HEIGHT)
         if self.task == "push-block":
             return bool(np.linalg.norm(self.object_pos()[:2] - self.target_pos()[:2]) < PUSH_SUCCESS_RADIUS)
+        if self.task == "pick-place":
+            p = self.object_pos()
+            return bool(
+                np.linalg.norm(p[:2] - self.target_pos()[:2]) < PLACE_SUCCESS_RADIUS
+                and p[2] < CUBE_HALF + 0.005
+                and self.gripper_opening() > 0.5
+            )
         return self.button_depth() > BUTTON_SUCCESS_DEPTH
 
     # ------------------------------------------------------------------ rendering
@@ -942,15 +988,18 @@ def panda_action_adapter(pos_scale: float = POS_SCALE, rot_scale: float = ROT_SC
     from lerobot_rnd.action_adapters import EEDeltaAdapter
 
     return EEDeltaAdapter(
-        pos_scale=pos_scale, rot_scale=rot_scale, frame="world", clip=1.0, gripper_open=-1.0, gripper_closed=1.0
-    ).to_dict()
+        pos_scale=pos_scale, rot_scale=rot_scale, frame="world", clip=1.0, gripper_open=-1.0,
+        gripper_closed=1.0,
+    ).to_dict()  # fmt: skip
 
 
 def panda_gripper_meshes(model=None, max_faces: int = GRIPPER_MESH_FACES) -> dict:
     """Robotiq 2F-85 meshes in the EE (``pinch`` site) frame, open gripper (qpos0 = open).
 
-    "full": body ``base_mount`` subtree (mount, base, both finger linkages and pads); "fingers": the
-    finger linkages (drivers, couplers, spring links, followers, pads), what the wrist camera sees."""
+    "full": body ``base_mount`` subtree (mount, base, both finger linkages and pads); "fingers": the two
+    fingers (follower links and pads, :data:`FINGER_BODIES`), drawn in the wrist camera, which sees the
+    finger tips (the linkages next to the camera would cover much of its image when drawn at future
+    poses)."""
     from lerobot_rnd.embodiment import GripperMesh
 
     if model is None:
@@ -1022,7 +1071,9 @@ def register_gym_envs() -> None:
     for task in PANDA_TASKS:
         env_id = f"{GYM_NAMESPACE}/{task}"
         if env_id not in registry:
-            gym.register(id=env_id, entry_point="lerobot_rnd.sim.panda_env:RnDPandaEnv", kwargs={"task": task})
+            gym.register(
+                id=env_id, entry_point="lerobot_rnd.sim.panda_env:RnDPandaEnv", kwargs={"task": task}
+            )
 
 
 @EnvConfig.register_subclass("rnd_panda")

@@ -14,6 +14,8 @@ with the controller's lag. The state machine restarts whenever the env is at ste
   step) line; back off and re-approach when the block slips sideways.
 - ``press-button``: close the gripper, go above the button (turned to the box's yaw modulo 90 degrees),
   press with the finger tips until the button is down, lift.
+- ``pick-place``: grasp as in ``lift-cube``, lift to 12 cm, carry above the target, lower the cube onto
+  it, open, move up.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from lerobot_rnd.sim.panda_env import (
 #: finger-pad tips below the EE (pinch) origin when the gripper is closed on nothing (m)
 CLOSED_TIP_OFFSET = 0.018
 LIFT_Z = 0.20
+CARRY_Z = 0.12
 HOVER = 0.10
 
 
@@ -97,7 +100,8 @@ class PandaExpert:
         T = env.mocap_pose()
         dpos = (np.asarray(pos, float) - T[:3, 3]) / env.pos_scale
         q_now = env.data.mocap_quat[env._mocap]
-        drot = quat_to_rotvec(quat_mul(np.asarray(quat, float), q_now * np.array([1, -1, -1, -1]))) / env.rot_scale
+        q_rel = quat_mul(np.asarray(quat, float), q_now * np.array([1, -1, -1, -1]))
+        drot = quat_to_rotvec(q_rel) / env.rot_scale
         m = max(np.abs(dpos).max() / speed, np.abs(drot).max() / speed, 1.0)
         a = np.zeros(7)
         a[:3], a[3:6] = dpos / m, drot / m
@@ -119,9 +123,9 @@ class PandaExpert:
         self.phase, self.count = phase, 0
 
     # ------------------------------------------------------------------ tasks
-    def _lift_cube(self, env) -> np.ndarray:
+    def _lift_cube(self, env, place: bool = False) -> np.ndarray:
         cube = env.object_pos()
-        yaw = _wrap(_yaw_of(env.object_quat()), math.pi / 2)
+        yaw = nearest_equivalent_yaw(_yaw_of(env.object_quat()), math.pi / 2, target_yaw(env))
         q = self.memory.get("quat", ee_quat_for_yaw(yaw))
         if self.phase in (0, 1):
             q = ee_quat_for_yaw(yaw)
@@ -144,13 +148,41 @@ class PandaExpert:
             if self.count >= 5:
                 self._next(3)
             return self.move(env, self.memory["grasp"], q, 1.0)
-        # lift
-        self.count += 1
         g = self.memory["grasp"]
-        if self.count > 8 and cube[2] < CUBE_HALF + 0.01:  # dropped: start over
-            self._next(0)
-            return self.move(env, env.mocap_pose()[:3, 3] + [0, 0, 0.02], q, -1.0)
-        return self.move(env, [g[0], g[1], LIFT_Z], q, 1.0)
+        if self.phase == 3:  # lift
+            self.count += 1
+            if self.count > 8 and cube[2] < CUBE_HALF + 0.01:  # dropped: start over
+                self._next(0)
+                return self.move(env, env.mocap_pose()[:3, 3] + [0, 0, 0.02], q, -1.0)
+            if not place:
+                return self.move(env, [g[0], g[1], LIFT_Z], q, 1.0)
+            goal = np.array([g[0], g[1], CARRY_Z])
+            if env.ee_pose()[2, 3] > CARRY_Z - 0.03:
+                self._next(4)
+            return self.move(env, goal, q, 1.0)
+        t = env.target_pos()
+        if self.phase == 4:  # carry above the target
+            goal = np.array([t[0], t[1], CARRY_Z])
+            e, _ = self.ee_error(env, goal, q)
+            if cube[2] < CUBE_HALF + 0.01:  # dropped on the way: start over
+                self._next(0)
+                return self.move(env, env.mocap_pose()[:3, 3] + [0, 0, 0.02], q, -1.0)
+            if np.linalg.norm(e[:2]) < 0.008:
+                self._next(5)
+            return self.move(env, goal, q, 1.0)
+        if self.phase == 5:  # put it down (pinch where it grasped the cube, cube on the table)
+            goal = np.array([t[0], t[1], g[2] + 0.003])
+            e, _ = self.ee_error(env, goal, q)
+            self.count += 1
+            if abs(e[2]) < 0.006 or self.count > 25:
+                self._next(6)
+            return self.move(env, goal, q, 1.0, speed=0.6)
+        if self.phase == 6:  # open
+            self.count += 1
+            if self.count >= 4:
+                self._next(7)
+            return self.move(env, env.mocap_pose()[:3, 3], q, -1.0)
+        return self.move(env, [t[0], t[1], HOVER], q, -1.0, speed=0.6)
 
     def _push_block(self, env) -> np.ndarray:
         b, t = env.object_pos(), env.target_pos()
@@ -229,6 +261,8 @@ class PandaExpert:
         self.memory["_last_step"] = env.steps
         if self.task == "lift-cube":
             a = self._lift_cube(env)
+        elif self.task == "pick-place":
+            a = self._lift_cube(env, place=True)
         elif self.task == "push-block":
             a = self._push_block(env)
         else:

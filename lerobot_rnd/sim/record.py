@@ -23,8 +23,8 @@ Written next to LeRobot's metadata:
 
 Each frame holds ``observation.images.<cam>`` (uint8 HxWx3 -> PNG), ``observation.state`` (see
 ``lerobot_rnd.sim.metaworld_env`` / ``lerobot_rnd.sim.panda_env``), ``action`` (the expert's action taken
-from that observation: 4-D MetaWorld, 7-D Panda) and the task description. After the first success ``--extra-steps`` more frames are
-recorded so that policies learn to stay at the goal.
+from that observation: 4-D MetaWorld, 7-D Panda) and the task description. After the first success
+``--extra-steps`` more frames are recorded so that policies learn to stay at the goal.
 """
 
 from __future__ import annotations
@@ -208,12 +208,15 @@ def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
         state_layout=s.state_layout,
     )
     expert = MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed)
-    return _record(s, env, expert, fps=METAWORLD_FPS, robot_type="sawyer", action_names=None, progress=progress)
+    return _record(
+        s, env, expert, fps=METAWORLD_FPS, robot_type="sawyer", action_names=None, progress=progress
+    )
 
 
 def record_panda(settings: RecordSettings, progress: bool = True) -> dict:
-    """Record ``settings.episodes`` successful expert episodes of a Panda task (``lerobot_rnd.sim.panda_env``);
-    returns a summary dict. ``cameras`` left at the MetaWorld default means the Panda default (front, wrist)."""
+    """Record ``settings.episodes`` successful expert episodes of a Panda task
+    (``lerobot_rnd.sim.panda_env``); returns a summary dict. ``cameras`` left at the MetaWorld default
+    means the Panda default (front, wrist)."""
     from dataclasses import replace
 
     from lerobot_rnd.sim.panda_env import ACTION_NAMES, PANDA_TASKS, RnDPandaEnv
@@ -252,7 +255,9 @@ def record(settings: RecordSettings, progress: bool = True) -> dict:
     raise ValueError(f"unknown suite {settings.suite!r}; suites: {', '.join(SUITES)}")
 
 
-def _record(s: RecordSettings, env, expert, *, fps: int, robot_type: str, action_names, progress: bool) -> dict:
+def _record(
+    s: RecordSettings, env, expert, *, fps: int, robot_type: str, action_names, progress: bool
+) -> dict:
     """The recording loop shared by the suites (``env`` / ``expert`` built from ``s``)."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
     from tqdm import tqdm
@@ -398,13 +403,17 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings:
         "--max-steps",
         type=int,
         default=None,
-        help=f"steps before an episode counts as failed (default {d.max_steps}; panda {PANDA_DEFAULT_MAX_STEPS})",
+        help=f"steps before an episode counts as failed (default {d.max_steps}, panda "
+        f"{PANDA_DEFAULT_MAX_STEPS})",
     )
     p.add_argument(
         "--extra-steps", type=int, default=d.extra_steps, help="frames recorded after the first success"
     )
     p.add_argument(
-        "--noise", type=float, default=d.noise_std, help="std of Gaussian noise on the expert's xyz action"
+        "--noise",
+        type=float,
+        default=d.noise_std,
+        help="std of Gaussian noise on the expert's motion (xyz; panda: xyz and rotation)",
     )
     p.add_argument("--max-attempts", type=int, default=None)
     p.add_argument("--resume", action="store_true", help="add episodes to an existing dataset")
@@ -416,7 +425,9 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings:
     panda = a.suite == "panda"
     task = a.task or ("lift-cube" if panda else d.task)
     cameras = split(a.cameras) if a.cameras else (list(PANDA_DEFAULT_CAMERAS) if panda else list(d.cameras))
-    max_steps = a.max_steps if a.max_steps is not None else (PANDA_DEFAULT_MAX_STEPS if panda else d.max_steps)
+    max_steps = a.max_steps
+    if max_steps is None:
+        max_steps = PANDA_DEFAULT_MAX_STEPS if panda else d.max_steps
     return RecordSettings(
         task=task, episodes=a.episodes, root=a.root, repo_id=a.repo_id, placements=a.placements, seed=a.seed,
         fps_pool=a.fps_pool, image_size=a.image_size, cameras=cameras, flip_cameras=split(a.flip_cameras),
