@@ -115,7 +115,7 @@ def run_sampler(policy, batch: dict, seed: int) -> dict:
     a0, logits = model.denoise(images, T_world_ee, gripper, noise, record=record)
 
     def composite_for(T_ee_target):
-        return model._network_inputs(images, T_world_ee, gripper, T_ee_target)[0]
+        return model._network_inputs(images, T_world_ee, gripper, T_ee_target, full_composite=True)["composite"]
 
     out = {
         "images": images,

@@ -7,8 +7,11 @@ Vosylius, Seo, Wang and Johns, RSS 2024 (https://arxiv.org/abs/2405.18196).
 Shapes: B batch, H observation steps, T future steps, F = H + T frames, C cameras, h x w network image size.
 """
 
+import copy
 import logging
+import warnings
 from collections import deque
+from contextlib import nullcontext
 
 import torch
 import torch.nn.functional as F  # noqa: N812
@@ -27,7 +30,7 @@ from lerobot_rnd.embodiment_binding import (
     resolve_embodiment,
 )
 from lerobot_rnd.geometry import action_from_pose, invert_transform, pose_from_action
-from lerobot_rnd.network import RnDDenoiser
+from lerobot_rnd.network import RnDDenoiser, gather_patch_pixels, patch_pixel_index, select_gripper_patches
 from lerobot_rnd.rendering import Rasterizer
 from lerobot_rnd.sampler import (
     ddim_step,
@@ -38,6 +41,8 @@ from lerobot_rnd.sampler import (
     register_point_update,
 )
 from lerobot_rnd.statistics import MinMaxStats, estimate_rnd_statistics
+
+POINT_STEP_FUNCTIONS = {"interpolate": interpolation_step, "ddim": ddim_step}
 
 logger = logging.getLogger(__name__)
 
@@ -69,6 +74,10 @@ class RnDPolicy(PreTrainedPolicy):
 
     def get_optim_params(self) -> dict:
         return self.model.network.parameters()
+
+    def update(self) -> None:
+        """Called by lerobot-train after every optimiser step: update the EMA weights (if `use_ema`)."""
+        self.model.update_ema()
 
     def reset(self):
         """Clear observation and action queues. Call on `env.reset()`."""
@@ -174,6 +183,7 @@ class RnDModel(nn.Module):
         self.action_stats = MinMaxStats(action_shape)
         self.displacement_stats = MinMaxStats((len(self.camera_keys), 3, 1, 1))
 
+        self.patch_grid = (config.image_size[0] // config.patch_size, config.image_size[1] // config.patch_size)
         self.predict_image = config.variant in ("I", "AI")
         self.predict_action = config.variant in ("A", "AI")
         self.network = RnDDenoiser(
@@ -190,7 +200,16 @@ class RnDModel(nn.Module):
             predict_image=self.predict_image,
             predict_action=self.predict_action,
             use_point_map_input=config.use_point_map_input,
+            gripper_patches=config.gripper_patches,
+            embedding_init_std=config.embedding_init_std,
         )
+        self.ema_network = None
+        if config.use_ema:
+            self.ema_network = copy.deepcopy(self.network).requires_grad_(False)
+            self.register_buffer("ema_updates", torch.zeros((), dtype=torch.long))
+        # BCE weight of the "closed" class: open/closed ratio of the dataset's gripper targets.
+        self.register_buffer("gripper_pos_weight", torch.ones(()))
+        self._warned_invisible = False
         self.noise_scheduler = make_noise_scheduler(config.num_train_timesteps, config.beta_schedule)
         self.register_buffer(
             "alphas_cumprod", self.noise_scheduler.alphas_cumprod.float().clone(), persistent=False
@@ -234,6 +253,41 @@ class RnDModel(nn.Module):
         stats = estimate_rnd_statistics(self, dataset_meta)
         self.action_stats.set(stats["action_min"], stats["action_max"])
         self.displacement_stats.set(stats["displacement_min"], stats["displacement_max"])
+        self.gripper_pos_weight.fill_(float(stats["gripper_pos_weight"]))
+
+    def normalize_displacement(self, x: Tensor) -> Tensor:
+        """Metric displacements (..., C, 3, N) on the predicted pixels -> normalised (per camera and axis)."""
+        return self.displacement_stats.normalize(x[..., None]).squeeze(-1)
+
+    def unnormalize_displacement(self, x: Tensor) -> Tensor:
+        """Inverse of `normalize_displacement`."""
+        return self.displacement_stats.unnormalize(x[..., None]).squeeze(-1)
+
+    # ------------------------------------------------------------------------------------------------
+    # EMA.
+    @torch.no_grad()
+    def update_ema(self) -> None:
+        """One EMA step of the network weights, decay min(ema_decay, (1 + n) / (10 + n))."""
+        if self.ema_network is None:
+            return
+        n = float(self.ema_updates)
+        decay = min(self.config.ema_decay, (1.0 + n) / (10.0 + n))
+        ema_params = list(self.ema_network.parameters())
+        params = [p.detach() for p in self.network.parameters()]
+        torch._foreach_lerp_(ema_params, params, 1.0 - decay)
+        self.ema_updates += 1
+
+    @property
+    def sampling_network(self) -> nn.Module:
+        """The EMA network at evaluation when `use_ema`, else the trained one."""
+        if self.ema_network is not None and not self.training:
+            return self.ema_network
+        return self.network
+
+    def _autocast(self, device_type: str):
+        if not self.config.autocast_bf16:
+            return nullcontext()
+        return torch.autocast(device_type=device_type, dtype=torch.bfloat16)
 
     # ------------------------------------------------------------------------------------------------
     # Observation preparation.
@@ -291,27 +345,113 @@ class RnDModel(nn.Module):
             T_world_cam,
         )
 
-    def _network_inputs(self, images, T_world_ee, gripper, T_ee_future):
-        """Build the network's rendered inputs for the current noisy actions.
+    def render_history(self, images: Tensor, T_world_ee: Tensor) -> dict:
+        """The past/current frames' network inputs (they do not depend on the noisy actions: the sampler renders
+        them once per chunk). images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4) -> {obs_rgb, obs_points}
+        (B, H, C, 3, h, w): the images (with the gripper pasted over them when `history_rgb_overlay`) and the
+        scaled camera-frame point maps of the gripper at the past/current poses (zeros if not `render_history`)."""
+        cfg = self.config
+        if not cfg.render_history:
+            return {"obs_rgb": images, "obs_points": torch.zeros_like(images)}
+        rgb_r, mask, points, _, _ = self.render_frames(T_world_ee, T_world_ee)
+        obs_rgb = torch.where(mask[:, :, :, None], rgb_r, images) if cfg.history_rgb_overlay else images
+        return {"obs_rgb": obs_rgb, "obs_points": points / cfg.point_map_scale}
 
-        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), T_ee_future (B, T, 4, 4) = T_ee_target.
+    def _network_inputs(
+        self, images, T_world_ee, gripper, T_ee_future, full_composite: bool = False, history: dict | None = None
+    ) -> dict:
+        """Render the current noisy actions and build the network's inputs.
+
+        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), T_ee_future (B, T, 4, 4) = T_ee_target; `history`:
+        `render_history(images, T_world_ee)` if already computed.
+        Returns a dict:
+            obs_rgb, obs_points (B, H, C, 3, h, w); future_rgb, future_points (B, T, C, 3, h, w), or the selected
+                patches' pixels (B, T, C, 3, N = K*p*p) with `gripper_patches` > 0: the network's inputs;
+            patch_index (B, T, C, K) or None;
+            target_points (B, T, C, 3, N) metric camera-frame points of the future renders at the pixels the
+                network predicts (N = h*w without gripper patches), target_mask (B, T, C, N) where they are set;
+            T_cam_obj, T_world_cam (B, T, C, 4, 4) of the future frames;
+            composite (B, F, C, 3, h, w) the full images the network sees, only when `full_composite`.
         """
-        b, n_obs = T_world_ee.shape[:2]
+        cfg = self.config
+        b = T_world_ee.shape[0]
         t = T_ee_future.shape[1]
+        if history is None:
+            history = self.render_history(images, T_world_ee)
         T_world_ee_now = T_world_ee[:, -1:]
-        T_world_future = T_world_ee_now @ T_ee_future
-        frames = torch.cat([T_world_ee, T_world_future], dim=1)
-        image_poses = torch.cat([T_world_ee, T_world_ee_now.expand(b, t, 4, 4)], dim=1)
-        rgb_r, mask, points, T_cam_obj, T_world_cam = self.render_frames(frames, image_poses)
-        if not self.config.render_history:
-            keep = torch.ones_like(mask)
-            keep[:, :n_obs] = False
-            mask = mask & keep
-            points = points * keep[:, :, :, None]
-        frame_images = torch.cat([images, images[:, -1:].expand(-1, t, -1, -1, -1, -1)], dim=1)
-        composite = torch.where(mask[:, :, :, None], rgb_r, frame_images)
-        point_map = points / self.config.point_map_scale
-        return composite, point_map, mask, points, T_cam_obj, T_world_cam
+        fut_rgb_r, fut_mask, fut_points, T_cam_obj, T_world_cam = self.render_frames(
+            T_world_ee_now @ T_ee_future, T_world_ee_now.expand(b, t, 4, 4)
+        )
+        obs_rgb, obs_points = history["obs_rgb"], history["obs_points"]
+        current = images[:, -1:].expand(-1, t, -1, -1, -1, -1)
+        patch_index = None
+        if cfg.gripper_patches:
+            patch_index = select_gripper_patches(fut_mask, cfg.patch_size, cfg.gripper_patches)
+            pixels = patch_pixel_index(patch_index, self.patch_grid, cfg.patch_size)  # (B, T, C, N)
+            target_mask = gather_patch_pixels(fut_mask, pixels)
+            target_points = gather_patch_pixels(fut_points, pixels)
+            future_rgb = torch.where(
+                target_mask[:, :, :, None], gather_patch_pixels(fut_rgb_r, pixels), gather_patch_pixels(current, pixels)
+            )
+            future_points = target_points
+        else:
+            future_rgb = torch.where(fut_mask[:, :, :, None], fut_rgb_r, current)
+            future_points = fut_points
+            target_mask = fut_mask.flatten(-2)
+            target_points = fut_points.flatten(-2)
+        out = {
+            "obs_rgb": obs_rgb,
+            "obs_points": obs_points,
+            "future_rgb": future_rgb,
+            "future_points": future_points / cfg.point_map_scale,
+            "patch_index": patch_index,
+            "target_points": target_points,
+            "target_mask": target_mask,
+            "T_cam_obj": T_cam_obj,
+            "T_world_cam": T_world_cam,
+        }
+        if full_composite:
+            future_full = torch.where(fut_mask[:, :, :, None], fut_rgb_r, current)
+            out["composite"] = torch.cat([obs_rgb, future_full], dim=1)
+        return out
+
+    def _run_network(self, network: nn.Module, inputs: dict, gripper: Tensor, timestep: Tensor, a: Tensor):
+        """The denoiser on rendered inputs. Returns float32 (displacement (B, T, C, 3, N) on the predicted
+        pixels or None, action update (B, T, 6) or None, gripper logits (B, T))."""
+        with self._autocast(a.device.type):
+            displacement, update, logits = network(
+                inputs["obs_rgb"], inputs["obs_points"], inputs["future_rgb"], inputs["future_points"],
+                gripper, timestep, a, patch_index=inputs["patch_index"],
+            )
+        if displacement is not None:
+            displacement = displacement.float().reshape(inputs["target_points"].shape)
+        return displacement, None if update is None else update.float(), logits.float()
+
+    def noisy_sample_targets(
+        self, images: Tensor, T_world_ee: Tensor, gripper: Tensor, T_ee_target: Tensor, generator=None
+    ) -> dict:
+        """Noise a ground-truth chunk, render it, and compute the training targets (used by training and by
+        the statistics estimate).
+
+        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper (B, H), T_ee_target (B, T, 4, 4).
+        Returns the `_network_inputs` dict plus k (B,), a_gt / a_noisy (B, T, 6) normalised, and
+        displacement (B, T, C, 3, N): the metric image-space target F_gt = T(a_gt, a_noisy) P - P at the
+        predicted pixels (meaningful on `target_mask`).
+        """
+        cfg = self.config
+        b = T_ee_target.shape[0]
+        device = T_ee_target.device
+        a_gt = self.action_stats.normalize(action_from_pose(T_ee_target))
+        k = torch.randint(0, cfg.num_train_timesteps, (b,), generator=generator, device="cpu").to(device)
+        eps = torch.randn(a_gt.shape, generator=generator, device="cpu").to(device)
+        a_noisy = self.noise_scheduler.add_noise(a_gt, eps, k).clamp(-1, 1)
+        T_ee_noisy = pose_from_action(self.action_stats.unnormalize(a_noisy))
+        with torch.no_grad():
+            inputs = self._network_inputs(images, T_world_ee, gripper, T_ee_noisy)
+            T_world_cam = inputs["T_world_cam"]
+            T_cam_target = invert_transform(T_world_cam) @ (T_world_ee[:, -1:, None] @ T_ee_target[:, :, None])
+            displacement = displacement_target(inputs["target_points"], inputs["T_cam_obj"], T_cam_target)
+        return {**inputs, "k": k, "a_gt": a_gt, "a_noisy": a_noisy, "displacement": displacement}
 
     # ------------------------------------------------------------------------------------------------
     # Training.
@@ -328,18 +468,9 @@ class RnDModel(nn.Module):
         images, T_world_ee, gripper = self.prepare_observation(images, state)
         b, t = action.shape[:2]
         T_ee_target, gripper_target = self.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
-        a_gt = self.action_stats.normalize(action_from_pose(T_ee_target)).clamp(-1, 1)
-
-        k = torch.randint(0, cfg.num_train_timesteps, (b,), device=action.device)
-        eps = torch.randn_like(a_gt)
-        a_noisy = self.noise_scheduler.add_noise(a_gt, eps, k).clamp(-1, 1)
-        T_ee_noisy = pose_from_action(self.action_stats.unnormalize(a_noisy))
-
-        with torch.no_grad():
-            composite, point_map, mask, points, T_cam_obj, T_world_cam = self._network_inputs(
-                images, T_world_ee, gripper, T_ee_noisy
-            )
-        displacement, update, logits = self.network(composite, point_map, gripper, k, a_noisy)
+        sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target)
+        a_gt, a_noisy = sample["a_gt"], sample["a_noisy"]
+        displacement, update, logits = self._run_network(self.network, sample, gripper, sample["k"], a_noisy)
 
         valid_step = torch.ones(b, t, dtype=torch.bool, device=action.device)
         if action_is_pad is not None:
@@ -347,23 +478,23 @@ class RnDModel(nn.Module):
         valid_f = valid_step.float()
         loss_dict = {}
         loss = action.new_zeros(())
-        n_obs = cfg.n_obs_steps
         if displacement is not None:
-            with torch.no_grad():
-                T_cam_target = invert_transform(T_world_cam[:, n_obs:]) @ (
-                    T_world_ee[:, -1:, None] @ T_ee_target[:, :, None]
-                )
-                target = displacement_target(points[:, n_obs:], T_cam_obj[:, n_obs:], T_cam_target)
-                target = self.displacement_stats.normalize(target)
-            pix = (mask[:, n_obs:] & valid_step[:, :, None, None, None]).unsqueeze(3).float()
-            image_loss = ((displacement - target).abs() * pix).sum() / (3 * pix.sum()).clamp_min(1.0)
+            target = self.normalize_displacement(sample["displacement"])
+            pix = (sample["target_mask"] & valid_step[:, :, None, None]).unsqueeze(3).float()  # (B, T, C, 1, N)
+            # Mean over each camera's rendered pixels, then sum over cameras: a near camera, whose gripper
+            # covers many pixels, does not drown the others.
+            per_cam_err = ((displacement - target).abs() * pix).sum((0, 1, 3, 4))  # (C,)
+            per_cam_n = 3 * pix.sum((0, 1, 3, 4))
+            image_loss = (per_cam_err / per_cam_n.clamp_min(1.0)).sum()
             loss = loss + cfg.image_loss_weight * image_loss
             loss_dict["image_loss"] = image_loss.item()
         if update is not None:
             action_loss = ((update - (a_gt - a_noisy)).abs().mean(-1) * valid_f).sum() / valid_f.sum().clamp_min(1)
             loss = loss + cfg.action_loss_weight * action_loss
             loss_dict["action_loss"] = action_loss.item()
-        gripper_bce = F.binary_cross_entropy_with_logits(logits, (gripper_target > 0).float(), reduction="none")
+        gripper_bce = F.binary_cross_entropy_with_logits(
+            logits, (gripper_target > 0).float(), reduction="none", pos_weight=self.gripper_pos_weight
+        )
         gripper_loss = (gripper_bce * valid_f).sum() / valid_f.sum().clamp_min(1)
         loss = loss + cfg.gripper_loss_weight * gripper_loss
         loss_dict["gripper_loss"] = gripper_loss.item()
@@ -372,55 +503,89 @@ class RnDModel(nn.Module):
     # ------------------------------------------------------------------------------------------------
     # Inference.
     def denoise(self, images, T_world_ee, gripper, noise: Tensor, record: list | None = None):
-        """The R&D sampler: DDIM steps updating actions through image space (SVD) and/or action space,
-        then an optional final action-space pass. Returns (a_0 normalised (B, T, 6), gripper logits (B, T)).
+        """The R&D sampler: `num_inference_steps` steps (`sampler_step`), then an optional final action-space
+        pass. Returns (a_0 normalised (B, T, 6), gripper logits (B, T)).
 
         If `record` is a list, the composite images of every step are appended to it (for visualisation).
         """
-        cfg = self.config
-        n_obs = cfg.n_obs_steps
-        b = noise.shape[0]
         a = noise
-        T_world_ee_now = T_world_ee[:, -1:]
         logits = None
-        point_update = ddim_step if cfg.point_update == "ddim" else interpolation_step
-        for i, k in enumerate(self.inference_timesteps):
-            a = a.clamp(-1, 1)
-            T_ee = pose_from_action(self.action_stats.unnormalize(a))
-            composite, point_map, mask, points, _, T_world_cam = self._network_inputs(
-                images, T_world_ee, gripper, T_ee
+        history = self.render_history(images, T_world_ee)  # the same for every step
+        for i in range(len(self.inference_timesteps)):
+            a, logits, composite = self.sampler_step(
+                images, T_world_ee, gripper, a, i, full_composite=record is not None, history=history
             )
             if record is not None:
                 record.append(composite)
-            timestep = torch.full((b,), k, device=a.device, dtype=torch.long)
-            displacement, update, logits = self.network(composite, point_map, gripper, timestep, a)
-            alpha, alpha_prev = self.inference_alpha_bar[i], self.inference_alpha_bar_prev[i]
-            if update is not None:
-                a_next = ddim_step(a, (a + update).clamp(-1, 1), alpha, alpha_prev)
-            else:
-                a_next = a
-            if displacement is not None:
-                p_k = points[:, n_obs:].float()
-                p0 = p_k + self.displacement_stats.unnormalize(displacement.float())
-                p_prev = point_update(p_k, p0, alpha, alpha_prev)
-                m = mask[:, n_obs:]
-                T_delta, valid = register_point_update(p_k, p_prev, m, T_world_cam[:, n_obs:], cfg.min_visible_points)
-                T_world_next = T_delta @ (T_world_ee_now @ T_ee)
-                a_image = self.action_stats.normalize(
-                    action_from_pose(invert_transform(T_world_ee_now) @ T_world_next)
-                )
-                a_next = torch.where(valid[..., None], a_image, a_next)
-            a = a_next
         a = a.clamp(-1, 1)
-        if cfg.final_action_step and self.predict_action:
+        if self.config.final_action_step and self.predict_action:
+            b = a.shape[0]
             T_ee = pose_from_action(self.action_stats.unnormalize(a))
-            composite, point_map, *_ = self._network_inputs(images, T_world_ee, gripper, T_ee)
+            inputs = self._network_inputs(
+                images, T_world_ee, gripper, T_ee, full_composite=record is not None, history=history
+            )
             if record is not None:
-                record.append(composite)
+                record.append(inputs["composite"])
             timestep = torch.zeros((b,), device=a.device, dtype=torch.long)
-            _, update, logits = self.network(composite, point_map, gripper, timestep, a)
+            _, update, logits = self._run_network(self.sampling_network, inputs, gripper, timestep, a)
             a = (a + update).clamp(-1, 1)
         return a, logits
+
+    def sampler_step(
+        self, images, T_world_ee, gripper, a: Tensor, i: int, full_composite: bool = False, history: dict | None = None
+    ):
+        """Step i of the sampler: render the actions a (B, T, 6, normalised), predict, update.
+
+        Returns (a_next (B, T, 6), gripper logits (B, T), composite images (B, F, C, 3, h, w) when
+        `full_composite`, else None). The clean estimate x0 comes from
+        the image space where at least `min_visible_points` rendered pixels are predicted (variants I, AI),
+        else from the action space (A, AI; the current action for I); see `point_update` and `denoise_step`.
+        """
+        cfg = self.config
+        b = a.shape[0]
+        a = a.clamp(-1, 1)
+        T_ee = pose_from_action(self.action_stats.unnormalize(a))
+        inputs = self._network_inputs(images, T_world_ee, gripper, T_ee, full_composite=full_composite, history=history)
+        timestep = torch.full((b,), self.inference_timesteps[i], device=a.device, dtype=torch.long)
+        displacement, update, logits = self._run_network(self.sampling_network, inputs, gripper, timestep, a)
+        alpha = self.inference_alpha_bar[i]
+        alpha_prev = self.inference_alpha_bar_prev[i] if cfg.denoise_step == "ddim" else torch.ones_like(alpha)
+        x0_action = (a + update).clamp(-1, 1) if update is not None else a
+        a_next = ddim_step(a, x0_action, alpha, alpha_prev)
+        if displacement is not None:
+            p_k = inputs["target_points"].float()
+            p0 = p_k + self.unnormalize_displacement(displacement)
+            if cfg.point_update == "x0":
+                p_target = p0
+            else:
+                p_target = POINT_STEP_FUNCTIONS[cfg.point_update](p_k, p0, alpha, alpha_prev)
+            T_world_cam = inputs["T_world_cam"]
+            T_delta, valid = register_point_update(
+                p_k, p_target, inputs["target_mask"], T_world_cam, cfg.min_visible_points
+            )
+            self._warn_if_never_visible(valid)
+            T_world_ee_now = T_world_ee[:, -1:]
+            # T_ee_moved = T_world_ee_now^-1 T_delta T_world_ee_now T_ee, composed in float64 for precision.
+            T_now = T_world_ee_now.double()
+            T_ee_moved = (invert_transform(T_now) @ T_delta.double() @ T_now @ T_ee.double()).float()
+            a_image = self.action_stats.normalize(action_from_pose(T_ee_moved))
+            if cfg.point_update == "x0":
+                a_image = ddim_step(a, a_image.clamp(-1, 1), alpha, alpha_prev)
+            a_next = torch.where(valid[..., None], a_image, a_next)
+        return a_next, logits, inputs.get("composite")
+
+    def _warn_if_never_visible(self, valid: Tensor) -> None:
+        """Warn once when the gripper is invisible in every camera for a whole chunk (eager mode only)."""
+        if self._warned_invisible or torch.compiler.is_compiling() or valid.device.type != "cpu":
+            return
+        if bool((~valid).all(dim=1).any()):
+            self._warned_invisible = True
+            warnings.warn(
+                "R&D: for a whole chunk the rendered gripper is visible in none of the cameras; the image-space "
+                "update falls back to the action space (variant I: the action stays as sampled). Check the camera "
+                "calibration if this persists.",
+                stacklevel=3,
+            )
 
     def _denoise_compiled(self, images, T_world_ee, gripper, noise):
         """`denoise` compiled with `torch.compile` (CUDA graphs on GPU) over static-shape rendering.

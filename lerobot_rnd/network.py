@@ -54,6 +54,8 @@ class TransformerBlock(nn.Module):
         """x: (B, N, D) -> (B, N, D)."""
         b, n, d = x.shape
         qkv = self.qkv(self.norm1(x)).reshape(b, n, 3, self.n_heads, d // self.n_heads).permute(2, 0, 3, 1, 4)
+        if qkv.device.type == "cpu" and qkv.dtype == torch.bfloat16:
+            qkv = qkv.float()  # PyTorch's CPU flash attention is ~3x slower in bf16 than in float32
         attn = F.scaled_dot_product_attention(
             qkv[0], qkv[1], qkv[2], dropout_p=self.dropout if self.training else 0.0
         )
@@ -84,15 +86,22 @@ class RnDDenoiser(nn.Module):
     """ViT that maps rendered observations to image-space displacements, action updates and gripper logits.
 
     Inputs (all for one batch):
-        rgb: (B, F, C, 3, h, w) camera images with the gripper rendered over them, in [0, 1]; frames are the
-            H past/current frames then the T future steps (each future frame is the current image with the
-            noisy action's gripper rendered on it).
-        point_map: (B, F, C, 3, h, w) camera-frame xyz of the rendered gripper (zeros elsewhere), scaled.
+        obs_rgb: (B, H, C, 3, h, w) past/current camera images in [0, 1] (with the history gripper pasted over
+            them when `history_rgb_overlay`).
+        obs_points: (B, H, C, 3, h, w) camera-frame xyz of the rendered history gripper (zeros elsewhere), scaled.
+        future_rgb: (B, T, C, 3, h, w) the current image with each future step's noisy gripper rendered on it;
+            with `gripper_patches` = K > 0, only the selected patches' pixels (B, T, C, 3, K*p*p), patch-major
+            (see `gather_patch_pixels`).
+        future_points: the future steps' point maps, same shape as `future_rgb`.
         gripper_state: (B, H) gripper state of the past/current frames, roughly in [-1, 1].
         timestep: (B,) diffusion step k.
         noisy_action: (B, T, 6) noisy normalised action (used by the A and AI variants).
+        patch_index: (B, T, C, K) long, required when `gripper_patches` > 0: which patches `future_*` hold
+            (`select_gripper_patches`: those the rendered gripper covers most). A future frame's other patches
+            equal the current frame's, which is tokenised in full.
     Outputs:
-        displacement: (B, T, C, 3, h, w) normalised per-pixel 3-D displacement (I and AI variants, else None).
+        displacement: normalised per-pixel 3-D displacement (I and AI variants, else None), (B, T, C, 3, h, w),
+            or (B, T, C, 3, K*p*p) on the selected pixels with `gripper_patches` > 0.
         action_update: (B, T, 6) normalised action-space update (A and AI variants, else None).
         gripper_logits: (B, T).
     """
@@ -112,6 +121,8 @@ class RnDDenoiser(nn.Module):
         predict_image: bool,
         predict_action: bool,
         use_point_map_input: bool,
+        gripper_patches: int = 0,
+        embedding_init_std: float = 0.02,
     ):
         super().__init__()
         self.n_views = n_views
@@ -124,6 +135,10 @@ class RnDDenoiser(nn.Module):
         self.predict_image = predict_image
         self.predict_action = predict_action
         self.use_point_map_input = use_point_map_input
+        if not 0 <= gripper_patches <= self.n_patches:
+            raise ValueError(f"gripper_patches must be in [0, {self.n_patches}] (patches per view), got {gripper_patches}")
+        self.gripper_patches = gripper_patches
+        self.future_patches = gripper_patches or self.n_patches  # tokens per future frame and view
         d = dim_model
 
         # Per-view patch embeddings (grouped convolutions: one group per view), half width each.
@@ -158,11 +173,13 @@ class RnDDenoiser(nn.Module):
             nn.Sequential(nn.Linear(d, d), nn.GELU(), nn.Linear(d, 6)) if predict_action else None
         )
         for p in (self.frame_embed, self.view_embed, self.register_token, self.future_pos_embed):
-            nn.init.normal_(p, std=0.02)
+            nn.init.normal_(p, std=embedding_init_std)
         if self.image_head is not None:
             # Start from "no displacement" so early training is stable.
             nn.init.zeros_(self.image_head.weight)
-        self.n_tokens = self.n_frames * n_views * self.n_patches + self.n_frames + 2 + horizon
+        self.n_tokens = (
+            (n_obs_steps * self.n_patches + horizon * self.future_patches) * n_views + self.n_frames + 2 + horizon
+        )
 
     def _patchify(self, images: Tensor, embed: nn.Conv2d) -> Tensor:
         """(B, F, C, 3, h, w) -> (B, F, C, P, D/2) with the view's own patch embedding."""
@@ -171,29 +188,45 @@ class RnDDenoiser(nn.Module):
         x = x.reshape(b, f, c, -1, self.n_patches)
         return x.transpose(-1, -2)
 
+    def _patchify_selected(self, pixels: Tensor, embed: nn.Conv2d) -> Tensor:
+        """Embed selected patches: pixels (B, T, C, 3, K*p*p) patch-major -> (B, T, C, K, D/2), with the same
+        (per-view) weights as `_patchify`."""
+        b, t, c, ch, n = pixels.shape
+        p = self.patch_size
+        k = n // (p * p)
+        patches = pixels.reshape(b, t, c, ch, k, p, p).permute(0, 1, 4, 2, 3, 5, 6)  # (B, T, K, C, 3, p, p)
+        x = embed(patches.reshape(b * t * k, c * ch, p, p))  # (B*T*K, C*D/2, 1, 1)
+        return x.reshape(b, t, k, c, -1).transpose(2, 3)
+
     def forward(
         self,
-        rgb: Tensor,
-        point_map: Tensor,
+        obs_rgb: Tensor,
+        obs_points: Tensor,
+        future_rgb: Tensor,
+        future_points: Tensor,
         gripper_state: Tensor,
         timestep: Tensor,
         noisy_action: Tensor | None,
+        patch_index: Tensor | None = None,
     ) -> tuple[Tensor | None, Tensor | None, Tensor]:
-        b, f, c = rgb.shape[:3]
+        b, n_obs, c = obs_rgb.shape[:3]
         t_h = self.horizon
-        rgb_tokens = self._patchify(rgb * 2.0 - 1.0, self.rgb_patch_embed)
-        if self.point_patch_embed is not None:
-            point_tokens = self._patchify(point_map, self.point_patch_embed)
+        if bool(self.gripper_patches) != (patch_index is not None):
+            raise ValueError(
+                f"gripper_patches={self.gripper_patches}: pass `patch_index` (B, T, C, K) exactly when "
+                "gripper_patches > 0."
+            )
+        obs_tokens = self._embed_frames(obs_rgb, obs_points, sparse=False)  # (B, H, C, P, D)
+        obs_tokens = obs_tokens + self.patch_pos_embed[None, None, None]
+        fut_tokens = self._embed_frames(future_rgb, future_points, sparse=patch_index is not None)  # (B,T,C,K,D)
+        if patch_index is None:
+            fut_tokens = fut_tokens + self.patch_pos_embed[None, None, None]
         else:
-            point_tokens = torch.zeros_like(rgb_tokens)
-        image_tokens = torch.cat([rgb_tokens, point_tokens], dim=-1)  # (B, F, C, P, D)
-        image_tokens = (
-            image_tokens
-            + self.frame_embed[None, :, None, None]
-            + self.view_embed[None, None, :, None]
-            + self.patch_pos_embed[None, None, None]
-        )
-        image_tokens = image_tokens.reshape(b, f * c * self.n_patches, -1)
+            fut_tokens = fut_tokens + self.patch_pos_embed[patch_index]
+        frame_view = self.frame_embed[:, None] + self.view_embed[None]  # (F, C, D)
+        obs_tokens = obs_tokens + frame_view[None, :n_obs, :, None]
+        fut_tokens = fut_tokens + frame_view[None, n_obs:, :, None]
+        image_tokens = torch.cat([obs_tokens.flatten(1, 3), fut_tokens.flatten(1, 3)], dim=1)
 
         gripper_in = torch.cat([gripper_state, gripper_state.new_zeros(b, t_h)], dim=1)  # future: zeros
         gripper_tokens = self.gripper_embed(gripper_in[..., None]) + self.frame_embed[None]
@@ -218,11 +251,81 @@ class RnDDenoiser(nn.Module):
         displacement = None
         if self.image_head is not None:
             n_obs_tokens = self.n_obs_steps * c * self.n_patches
-            fut = x[:, n_obs_tokens : n_obs_tokens + t_h * c * self.n_patches]
-            fut = fut.reshape(b, t_h, c, self.n_patches, d).transpose(2, 3)  # (B, T, P, C, D)
-            patches = self.image_head(fut)  # (B, T, P, C, 3 p p)
-            gh, gw = self.grid
-            p = self.patch_size
-            patches = patches.reshape(b, t_h, gh, gw, c, 3, p, p)
-            displacement = patches.permute(0, 1, 4, 5, 2, 6, 3, 7).reshape(b, t_h, c, 3, gh * p, gw * p)
+            k = self.future_patches
+            fut = x[:, n_obs_tokens : n_obs_tokens + t_h * c * k]
+            fut = fut.reshape(b, t_h, c, k, d).transpose(2, 3)  # (B, T, K, C, D)
+            patches = self.image_head(fut).transpose(2, 3)  # (B, T, C, K, 3 p p)
+            if patch_index is None:
+                displacement = patches_to_image(patches, self.grid, self.patch_size)
+            else:
+                p = self.patch_size
+                displacement = patches.reshape(b, t_h, c, k, 3, p * p).transpose(3, 4).reshape(b, t_h, c, 3, k * p * p)
         return displacement, action_update, gripper_logits
+
+    def _embed_frames(self, rgb: Tensor, points: Tensor, sparse: bool) -> Tensor:
+        """Images and point maps (B, F', C, 3, h, w), or selected pixels (B, F', C, 3, K*p*p) when `sparse`
+        -> (B, F', C, P or K, D) patch tokens (no position embeddings)."""
+        patchify = self._patchify_selected if sparse else self._patchify
+        rgb_tokens = patchify(rgb * 2.0 - 1.0, self.rgb_patch_embed)
+        if self.point_patch_embed is None:
+            return torch.cat([rgb_tokens, torch.zeros_like(rgb_tokens)], dim=-1)
+        return torch.cat([rgb_tokens, patchify(points, self.point_patch_embed)], dim=-1)
+
+
+def patch_pixel_index(patch_index: Tensor, grid: tuple[int, int], patch_size: int) -> Tensor:
+    """Flat (row-major) pixel numbers of selected patches: (..., K) -> (..., K*p*p), patch-major, then rows,
+    then columns within a patch."""
+    gh, gw = grid
+    p = patch_size
+    w = gw * p
+    row0 = (patch_index // gw) * p
+    col0 = (patch_index % gw) * p
+    offsets = torch.arange(p, device=patch_index.device)
+    pix = (row0[..., None, None] + offsets[:, None]) * w + col0[..., None, None] + offsets[None, :]
+    return pix.flatten(-3)
+
+
+def gather_patch_pixels(x: Tensor, pixel_index: Tensor) -> Tensor:
+    """x (..., ch, h, w) (or (..., h, w) with no channel dim when `x.ndim == pixel_index.ndim + 1`),
+    pixel_index (..., N) -> (..., ch, N) (or (..., N)). Reads only the selected pixels."""
+    if x.ndim == pixel_index.ndim + 1:  # no channel dimension
+        return torch.gather(x.flatten(-2), -1, pixel_index)
+    flat = x.flatten(-2)  # (..., ch, h*w)
+    index = pixel_index[..., None, :].expand(*pixel_index.shape[:-1], flat.shape[-2], pixel_index.shape[-1])
+    return torch.gather(flat, -1, index)
+
+
+def patches_to_image(patches: Tensor, grid: tuple[int, int], patch_size: int) -> Tensor:
+    """(..., P, ch * p * p) per-patch values, P = gh * gw row-major -> (..., ch, gh * p, gw * p)."""
+    *lead, n, m = patches.shape
+    gh, gw = grid
+    p = patch_size
+    ch = m // (p * p)
+    x = patches.reshape(*lead, gh, gw, ch, p, p)
+    nd = x.ndim
+    # (..., gh, gw, ch, p, p) -> (..., ch, gh, p, gw, p)
+    x = x.permute(*range(nd - 5), nd - 3, nd - 5, nd - 2, nd - 4, nd - 1)
+    return x.reshape(*lead, ch, gh * p, gw * p)
+
+
+def select_gripper_patches(mask: Tensor, patch_size: int, k: int) -> Tensor:
+    """The k patches of each image that the rendered gripper covers most (ties: lower patch number first).
+
+    mask: (..., h, w) bool -> patch_index (..., k) long, sorted ascending (row-major patch numbers).
+    """
+    *lead, h, w = mask.shape
+    p = patch_size
+    counts = mask.reshape(*lead, h // p, p, w // p, p).sum((-1, -3)).flatten(-2).float()  # (..., P)
+    n = counts.shape[-1]
+    # Stable tie-break towards lower patch numbers without a data-dependent sort.
+    score = counts * n + (n - 1 - torch.arange(n, device=mask.device, dtype=counts.dtype))
+    return torch.topk(score, k, dim=-1).indices.sort(dim=-1).values
+
+
+def patch_coverage(patch_index: Tensor, grid: tuple[int, int], patch_size: int) -> Tensor:
+    """Pixels inside the selected patches: patch_index (..., K) -> (..., h, w) bool."""
+    gh, gw = grid
+    p = patch_size
+    flags = torch.zeros(*patch_index.shape[:-1], gh * gw, dtype=torch.bool, device=patch_index.device)
+    flags = flags.scatter(-1, patch_index, True).reshape(*patch_index.shape[:-1], gh, 1, gw, 1)
+    return flags.expand(*patch_index.shape[:-1], gh, p, gw, p).reshape(*patch_index.shape[:-1], gh * p, gw * p)

@@ -10,8 +10,6 @@ from torch import Tensor
 
 from lerobot_rnd.geometry import invert_transform, weighted_rigid_registration
 
-POINT_UPDATES = ("ddim", "interpolate")
-
 
 def make_noise_scheduler(num_train_timesteps: int, beta_schedule: str) -> DDIMScheduler:
     """DDIM scheduler predicting the clean sample, as in the research implementation.
@@ -65,15 +63,17 @@ def interpolation_step(x_k: Tensor, x0_hat: Tensor, alpha_bar: Tensor, alpha_bar
 def displacement_target(points_cam: Tensor, T_cam_noisy: Tensor, T_cam_target: Tensor) -> Tensor:
     """Ground-truth per-pixel displacement F_gt = T(a_gt, a_noisy) P - P.
 
-    points_cam: (..., 3, H, W) camera-frame points of the gripper rendered at the noisy pose.
-    T_cam_noisy, T_cam_target: (..., 4, 4) gripper poses in the camera frame for the noisy and the
-        ground-truth action. Returns (..., 3, H, W); zero where points_cam is zero is NOT implied (mask it).
+    points_cam: (..., 3, *pixels) camera-frame points of the gripper rendered at the noisy pose (pixels: (H, W)
+        or (N,)). T_cam_noisy, T_cam_target: (..., 4, 4) gripper poses in the camera frame for the noisy and the
+        ground-truth action. Returns (..., 3, *pixels); zero where points_cam is zero is NOT implied (mask it).
     """
     T_target_noisy = T_cam_target @ invert_transform(T_cam_noisy)
     rot = T_target_noisy[..., :3, :3]
     trans = T_target_noisy[..., :3, 3]
-    moved = torch.einsum("...ij,...jhw->...ihw", rot, points_cam) + trans[..., None, None]
-    return moved - points_cam
+    lead = T_target_noisy.shape[:-2]
+    flat = points_cam.reshape(*lead, 3, -1)
+    moved = torch.einsum("...ij,...jn->...in", rot, flat) + trans[..., None]
+    return (moved - flat).reshape(points_cam.shape)
 
 
 def register_point_update(
@@ -86,20 +86,24 @@ def register_point_update(
     """Rigid transform, in the world frame, that moves the rendered gripper from P_k to P_{k-1}.
 
     All cameras are pooled: for each sample and horizon step one weighted SVD over every visible pixel.
-    points_k_cam, points_prev_cam: (B, T, C, 3, H, W) camera-frame points; mask: (B, T, C, H, W) bool;
+    points_k_cam, points_prev_cam: (B, T, C, 3, *pixels) camera-frame points (pixels: (H, W) or (N,));
+    mask: (B, T, C, *pixels) bool;
     T_world_cam: (B, T, C, 4, 4). Returns (T_world_delta (B, T, 4, 4), valid (B, T) bool); valid is False
-    where fewer than `min_points` pixels are visible over all cameras.
+    where fewer than `min_points` pixels are visible over all cameras. Solved in float64 (world coordinates
+    of a metre or more would otherwise cost about 1e-6 m of float32 precision); returned in the input dtype.
     """
     b, t, c = mask.shape[:3]
-    rot = T_world_cam[..., :3, :3]
-    trans = T_world_cam[..., :3, 3]
+    dtype = points_k_cam.dtype
+    points_k_cam, points_prev_cam = points_k_cam.double(), points_prev_cam.double()
+    rot = T_world_cam[..., :3, :3].double()
+    trans = T_world_cam[..., :3, 3].double()
 
     def to_world(points: Tensor) -> Tensor:
-        flat = points.flatten(-2)  # (B, T, C, 3, HW)
+        flat = points.flatten(4)  # (B, T, C, 3, N)
         world = torch.einsum("btcij,btcjn->btcni", rot, flat) + trans[..., None, :]
         return world.reshape(b, t, -1, 3)  # (B, T, C*HW, 3)
 
     weights = mask.reshape(b, t, -1).to(points_k_cam.dtype)
     T_world_delta, valid = weighted_rigid_registration(to_world(points_k_cam), to_world(points_prev_cam), weights)
     valid = valid & (weights.sum(-1) >= min_points)
-    return T_world_delta, valid
+    return T_world_delta.to(dtype), valid

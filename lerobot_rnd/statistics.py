@@ -15,8 +15,7 @@ from tqdm.auto import tqdm
 
 from lerobot.utils.constants import ACTION, OBS_STATE
 
-from lerobot_rnd.geometry import action_from_pose, invert_transform, pose_from_action
-from lerobot_rnd.sampler import displacement_target
+from lerobot_rnd.geometry import action_from_pose
 
 logger = logging.getLogger(__name__)
 
@@ -80,11 +79,16 @@ def sample_training_windows(
     rng = np.random.default_rng(seed)
     lengths = np.array([len(s) for s, _ in episodes])
     ep_ids = rng.choice(len(episodes), size=num_samples, p=lengths / lengths.sum())
+    frame_ids = [int(rng.integers(0, lengths[e])) for e in ep_ids]
+    return _windows(episodes, list(zip(ep_ids, frame_ids)), n_obs_steps, horizon)
+
+
+def _windows(episodes, picks, n_obs_steps: int, horizon: int) -> tuple[Tensor, Tensor, Tensor]:
+    """The training windows (state (S, H, D), action (S, T, A), action_is_pad (S, T)) at (episode, frame) picks."""
     states, actions, pads = [], [], []
-    for e in ep_ids:
+    for e, i in picks:
         st, ac = episodes[e]
         n = len(st)
-        i = rng.integers(0, n)
         obs_idx = np.clip(np.arange(i - n_obs_steps + 1, i + 1), 0, n - 1)
         act_idx = np.arange(i, i + horizon)
         pads.append(act_idx >= n)
@@ -93,56 +97,91 @@ def sample_training_windows(
     return torch.from_numpy(np.stack(states)), torch.from_numpy(np.stack(actions)), torch.from_numpy(np.stack(pads))
 
 
-@torch.no_grad()
-def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 64) -> dict[str, Tensor]:
-    """Estimate action, displacement and gripper statistics for `model` (an `RnDModel`) from the dataset.
+def iter_all_windows(episodes, n_obs_steps: int, horizon: int, batch_size: int = 4096):
+    """Every training window of the dataset (one per frame), in batches: yields (state, action, action_is_pad)."""
+    picks = [(e, i) for e, (st, _) in enumerate(episodes) for i in range(len(st))]
+    for start in range(0, len(picks), batch_size):
+        yield _windows(episodes, picks[start : start + batch_size], n_obs_steps, horizon)
 
-    The displacement statistics are measured exactly as training produces targets: normalised ground-truth
-    chunks, a random diffusion step, noise, clamping, rendering, F_gt = T(a_gt, a_noisy) P - P.
+
+def _check_finite_rows(episodes) -> None:
+    for e, (st, ac) in enumerate(episodes):
+        for name, arr in (("observation.state", st), ("action", ac)):
+            bad = ~np.isfinite(arr)
+            if bad.any():
+                row = int(np.argwhere(bad.any(axis=1))[0, 0])
+                raise ValueError(
+                    f"The dataset's {name!r} contains NaN or inf (episode {e}, frame {row}, "
+                    f"{int(bad.sum())} value(s) in that episode): R&D's statistics would be NaN. Fix or drop those "
+                    "frames (e.g. --dataset.episodes=[...] without that episode)."
+                )
+
+
+def widen(minimum: Tensor, maximum: Tensor, margin: float) -> tuple[Tensor, Tensor]:
+    """Widen [min, max] by `margin` x range on each side."""
+    pad = (maximum - minimum) * margin
+    return minimum - pad, maximum + pad
+
+
+@torch.no_grad()
+def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 16) -> dict[str, Tensor]:
+    """Action, displacement and gripper statistics for `model` (an `RnDModel`) from the dataset on disk.
+
+    - Action min/max over EVERY training window of the dataset (streamed, padded steps excluded), widened by
+      `action_stats_margin`, so no training target falls outside [-1, 1].
+    - Gripper: the open/closed ratio of the targets (the BCE's positive-class weight, clamped to [0.1, 10]).
+    - Displacement min/max per camera and axis from `stats_num_samples` random windows, produced exactly as
+      training produces its targets (`RnDModel.noisy_sample_targets`), widened by the same margin.
     """
     cfg = model.config
     episodes = load_episode_arrays(dataset_meta.root)
+    if not episodes or sum(len(s) for s, _ in episodes) == 0:
+        raise ValueError(f"The dataset at {dataset_meta.root} has no frames: record or select some episodes.")
+    _check_finite_rows(episodes)
+    device = model.action_stats.min.device
+    shape = (cfg.chunk_size, 6) if cfg.per_horizon_action_normalization else (6,)
+    big = torch.finfo(torch.float32).max
+    a_min = torch.full(shape, big, device=device)
+    a_max = torch.full(shape, -big, device=device)
+    n_closed = n_open = 0
+    for state, action, is_pad in iter_all_windows(episodes, cfg.n_obs_steps, cfg.chunk_size):
+        state, action, valid = state.to(device), action.to(device), (~is_pad).to(device)
+        T_world_ee = model.ee_reader.pose(state)
+        T_ee_target, grip = model.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
+        a = action_from_pose(T_ee_target).float()  # (S, T, 6)
+        reduce_dims = (0,) if cfg.per_horizon_action_normalization else (0, 1)
+        a_min = torch.minimum(a_min, torch.where(valid[..., None], a, big).amin(reduce_dims))
+        a_max = torch.maximum(a_max, torch.where(valid[..., None], a, -big).amax(reduce_dims))
+        n_closed += int(((grip > 0) & valid).sum())
+        n_open += int(((grip <= 0) & valid).sum())
+    never = a_min > a_max  # a horizon step never valid (per-horizon normalisation on very short episodes)
+    a_min = torch.where(never, torch.zeros_like(a_min), a_min)
+    a_max = torch.where(never, torch.zeros_like(a_max), a_max)
+    a_min, a_max = widen(a_min, a_max, cfg.action_stats_margin)
+    model.action_stats.set(a_min, a_max)
+    pos_weight = 1.0 if n_closed == 0 or n_open == 0 else min(10.0, max(0.1, n_open / n_closed))
+
     state, action, is_pad = sample_training_windows(
         episodes, cfg.n_obs_steps, cfg.chunk_size, cfg.stats_num_samples, seed=cfg_seed(cfg)
     )
-    device = model.action_stats.min.device
-    state, action, is_pad = state.to(device), action.to(device), is_pad.to(device)
-    T_world_ee = model.ee_reader.pose(state)  # (S, H, 4, 4)
-    T_ee_target, _ = model.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
-    a = action_from_pose(T_ee_target)  # (S, T, 6)
-    valid = ~is_pad
-    big = torch.finfo(a.dtype).max
-    if cfg.per_horizon_action_normalization:
-        a_min = torch.where(valid[..., None], a, big).amin(0)
-        a_max = torch.where(valid[..., None], a, -big).amax(0)
-        a_min = torch.where(a_min > a_max, torch.zeros_like(a_min), a_min)
-        a_max = torch.maximum(a_max, a_min)
-    else:
-        flat, flat_valid = a.reshape(-1, 6), valid.reshape(-1)
-        a_min = torch.where(flat_valid[:, None], flat, big).amin(0)
-        a_max = torch.where(flat_valid[:, None], flat, -big).amax(0)
-    model.action_stats.set(a_min, a_max)
-
     n_cam = len(model.camera_keys)
     d_min = torch.full((n_cam, 3), float("inf"), device=device)
     d_max = torch.full((n_cam, 3), float("-inf"), device=device)
     generator = torch.Generator(device="cpu").manual_seed(cfg_seed(cfg))
-    for start in tqdm(range(0, len(state), batch_size), desc="R&D target statistics", leave=False):
+    h, w = cfg.image_size
+    for start in tqdm(range(0, len(state), batch_size), desc="R&D image-space target statistics", leave=False):
         sl = slice(start, start + batch_size)
-        a_gt = model.action_stats.normalize(a[sl]).clamp(-1, 1)
-        b = a_gt.shape[0]
-        k = torch.randint(0, cfg.num_train_timesteps, (b,), generator=generator).to(device)
-        eps = torch.randn(a_gt.shape, generator=generator).to(device)
-        a_noisy = model.noise_scheduler.add_noise(a_gt, eps, k).clamp(-1, 1)
-        T_ee_noisy = pose_from_action(model.action_stats.unnormalize(a_noisy))
-        T_now = T_world_ee[sl, -1:]
-        t = T_ee_noisy.shape[1]
-        _, mask, points, T_cam_obj, T_world_cam = model.render_frames(T_now @ T_ee_noisy, T_now.expand(b, t, 4, 4))
-        T_cam_target = invert_transform(T_world_cam) @ (T_now[:, :, None] @ T_ee_target[sl][:, :, None])
-        disp = displacement_target(points, T_cam_obj, T_cam_target)  # (b, T, C, 3, h, w)
-        m = (mask & valid[sl][:, :, None, None, None]).unsqueeze(3)
-        per_cam = disp.permute(2, 3, 0, 1, 4, 5).reshape(n_cam, 3, -1)
-        per_cam_mask = m.expand_as(disp).permute(2, 3, 0, 1, 4, 5).reshape(n_cam, 3, -1)
+        st, ac, valid = state[sl].to(device), action[sl].to(device), (~is_pad[sl]).to(device)
+        b = st.shape[0]
+        T_world_ee = model.ee_reader.pose(st)
+        gripper = model.ee_reader.gripper(st)
+        T_ee_target, _ = model.action_adapter.to_rnd(ac, T_world_ee[:, -1], state=st[:, -1])
+        blank = torch.zeros(b, cfg.n_obs_steps, n_cam, 3, h, w, device=device)
+        sample = model.noisy_sample_targets(blank, T_world_ee, gripper, T_ee_target, generator=generator)
+        disp = sample["displacement"]  # (b, T, C, 3, N)
+        m = (sample["target_mask"] & valid[:, :, None, None]).unsqueeze(3)  # (b, T, C, 1, N)
+        per_cam = disp.permute(2, 3, 0, 1, 4).reshape(n_cam, 3, -1)
+        per_cam_mask = m.expand_as(disp).permute(2, 3, 0, 1, 4).reshape(n_cam, 3, -1)
         d_min = torch.minimum(d_min, torch.where(per_cam_mask, per_cam, float("inf")).amin(-1))
         d_max = torch.maximum(d_max, torch.where(per_cam_mask, per_cam, float("-inf")).amax(-1))
     never_seen = ~torch.isfinite(d_min)
@@ -154,11 +193,13 @@ def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 64) -> dict[s
         )
         d_min = torch.where(never_seen, torch.full_like(d_min, -0.05), d_min)
         d_max = torch.where(never_seen, torch.full_like(d_max, 0.05), d_max)
+    d_min, d_max = widen(d_min, d_max, cfg.action_stats_margin)
     return {
         "action_min": a_min,
         "action_max": a_max,
         "displacement_min": d_min[..., None, None],
         "displacement_max": d_max[..., None, None],
+        "gripper_pos_weight": torch.tensor(pos_weight),
     }
 
 

@@ -68,6 +68,19 @@ def test_register_point_update_pools_cameras_and_flags_invisible_steps():
     np.testing.assert_allclose(got[valid].numpy(), T_delta[valid].numpy(), atol=1e-6)
 
 
+def _exact_displacement(model, future_points, T_world_ee_now, T_ee_from, T_ee_to):
+    """Reference F = T_cam_to T_cam_from^-1 P - P per pixel, from the future point maps (B, T, C, 3, ...) and
+    the camera poses."""
+    T_world_cam = model.rig.T_world_cam(T_world_ee_now[:, None].expand(-1, T_ee_from.shape[1], 4, 4))
+    cam_from_world = torch.linalg.inv(T_world_cam)
+    rel = cam_from_world @ (T_world_ee_now[:, None, None] @ T_ee_to[:, :, None]) @ torch.linalg.inv(
+        cam_from_world @ (T_world_ee_now[:, None, None] @ T_ee_from[:, :, None])
+    )
+    points = future_points.flatten(4) * model.config.point_map_scale  # (B, T, C, 3, N)
+    moved = torch.einsum("btcij,btcjn->btcin", rel[..., :3, :3], points) + rel[..., :3, 3, None]
+    return (moved - points).reshape(future_points.shape)
+
+
 class _OracleNetwork(torch.nn.Module):
     """Stands in for the ViT: returns the true image-space displacement and action update for a known target.
 
@@ -81,56 +94,180 @@ class _OracleNetwork(torch.nn.Module):
         self.a_target = a_target_norm
         self.T_world_ee_now = T_world_ee_now  # (B, 4, 4)
 
-    def forward(self, rgb, point_map, gripper_state, timestep, noisy_action):
+    def forward(self, obs_rgb, obs_points, future_rgb, future_points, gripper_state, timestep, noisy_action,
+                patch_index=None):
         from lerobot_rnd.geometry import pose_from_action
 
         m = self.model
-        n_obs = m.config.n_obs_steps
         stats = m.action_stats
         T_ee_noisy = pose_from_action(stats.unnormalize(noisy_action.clamp(-1, 1)))
         T_ee_target = pose_from_action(stats.unnormalize(self.a_target))
-        T_world_cam = m.rig.T_world_cam(self.T_world_ee_now[:, None].expand(-1, T_ee_noisy.shape[1], 4, 4))
-        cam_from_world = torch.linalg.inv(T_world_cam)
-        rel = cam_from_world @ (self.T_world_ee_now[:, None, None] @ T_ee_target[:, :, None]) @ torch.linalg.inv(
-            cam_from_world @ (self.T_world_ee_now[:, None, None] @ T_ee_noisy[:, :, None])
-        )
-        points = point_map[:, n_obs:] * m.config.point_map_scale  # (B, T, C, 3, h, w)
-        moved = torch.einsum("btcij,btcjhw->btcihw", rel[..., :3, :3], points) + rel[..., :3, 3, None, None]
-        displacement = m.displacement_stats.normalize(moved - points)
+        moved = _exact_displacement(m, future_points, self.T_world_ee_now, T_ee_noisy, T_ee_target)
+        displacement = m.normalize_displacement(moved.flatten(4)).reshape(moved.shape)
         update = self.a_target - noisy_action
         logits = torch.ones(noisy_action.shape[:2])
         return displacement, update, logits
 
 
-@pytest.mark.parametrize("variant", ["I", "AI"])
-def test_sampler_with_an_oracle_denoiser_reaches_the_target(toy_dataset_root, variant):
-    """Image-space path (I: SVD only) and the full R&D-AI sampler must land on the target action."""
-    policy, _ = _make_policy(toy_dataset_root, variant=variant, num_inference_steps=4, final_action_step=False)
-    model = policy.model
-    b = 3
-    state = torch.tensor([[0.02, -0.03, 0.21, 1.0], [-0.04, 0.02, 0.18, 1.0], [0.0, 0.05, 0.2, 1.0]])
+class _ZeroDisplacementNetwork(torch.nn.Module):
+    """Predicts "the gripper is already where it should be": zero metric displacement, no action update."""
+
+    def __init__(self, model):
+        super().__init__()
+        self.model = model
+
+    def forward(self, obs_rgb, obs_points, future_rgb, future_points, gripper_state, timestep, noisy_action,
+                patch_index=None):
+        b, t = noisy_action.shape[:2]
+        zero_metric = torch.zeros_like(future_points)
+        return self.model.normalize_displacement(zero_metric.flatten(4)).reshape(zero_metric.shape), torch.zeros_like(noisy_action), torch.ones(b, t)
+
+
+def _observation(model, b=3):
+    state = torch.tensor([[0.02, -0.03, 0.21, 1.0], [-0.04, 0.02, 0.18, 1.0], [0.0, 0.05, 0.2, 1.0]])[:b]
     state = state[:, None].expand(b, 2, 4)
-    images = torch.rand(b, 2, 2, 3, 64, 64)
-    _, T_world_ee, gripper = model.prepare_observation(images, state)
-    # A target chunk inside the data range: the gripper moves a few cm and turns by up to ~10 degrees.
-    rng = np.random.default_rng(3)
-    a_target = torch.tensor(
+    images = torch.rand(b, 2, len(model.camera_keys), 3, 64, 64, generator=torch.Generator().manual_seed(1))
+    return model.prepare_observation(images, state)
+
+
+def _target_chunk(b=3, seed=3):
+    """A target chunk inside the data range: the gripper moves a few cm and turns by up to ~10 degrees."""
+    rng = np.random.default_rng(seed)
+    return torch.tensor(
         np.concatenate([rng.uniform(-0.02, 0.02, (b, 4, 3)), rng.uniform(-0.15, 0.15, (b, 4, 3))], -1),
         dtype=torch.float32,
     )
+
+
+POINT_UPDATE_MODES = ("x0", "interpolate", "ddim")
+
+
+@pytest.mark.parametrize("point_update", POINT_UPDATE_MODES)
+@pytest.mark.parametrize("variant", ["I", "AI"])
+@pytest.mark.parametrize("denoise_step", ["ddim", "clean"])
+def test_sampler_with_an_oracle_denoiser_reaches_the_target_from_any_noise_level(
+    toy_dataset_root, point_update, variant, denoise_step
+):
+    """Every point-update mode lands on the target at the final step, whatever step the sampler starts at."""
+    policy, _ = _make_policy(
+        toy_dataset_root, variant=variant, num_inference_steps=4, final_action_step=False,
+        point_update=point_update, denoise_step=denoise_step,
+    )
+    model = policy.model
+    images, T_world_ee, gripper = _observation(model)
+    a_target = _target_chunk()
     model.action_stats.set(torch.full((6,), -0.2), torch.full((6,), 0.2))
     a_target_norm = model.action_stats.normalize(a_target)
     model.network = _OracleNetwork(model, a_target_norm, T_world_ee[:, -1])
-    noise = torch.randn(b, 4, 6, generator=torch.Generator().manual_seed(0))
+    for start in range(4):  # start from pure noise (0) down to the last step (3)
+        a = torch.randn(3, 4, 6, generator=torch.Generator().manual_seed(start)) * (1.0 if start == 0 else 0.5)
+        with torch.no_grad():
+            for i in range(start, 4):
+                a, _, _ = model.sampler_step(images, T_world_ee, gripper, a, i)
+        got = model.action_stats.unnormalize(a)
+        trans_err = (got[..., :3] - a_target[..., :3]).norm(dim=-1)
+        rot_err = Rotation.from_rotvec(got[..., 3:].reshape(-1, 3).double().numpy()).inv() * Rotation.from_rotvec(
+            a_target[..., 3:].reshape(-1, 3).double().numpy()
+        )
+        assert trans_err.max() < 1e-4, (start, trans_err.max())
+        assert rot_err.magnitude().max() < 1e-4, (start, rot_err.magnitude().max())
+
+
+def test_full_sampler_with_gripper_patches_and_an_oracle_reaches_the_target(toy_dataset_root):
+    """With only the gripper's patches as tokens, the SVD over the covered pixels still lands on the target."""
+    policy, _ = _make_policy(toy_dataset_root, variant="I", gripper_patches=4, final_action_step=False)
+    model = policy.model
+    images, T_world_ee, gripper = _observation(model)
+    a_target = _target_chunk()
+    model.action_stats.set(torch.full((6,), -0.2), torch.full((6,), 0.2))
+    model.network = _OracleNetwork(model, model.action_stats.normalize(a_target), T_world_ee[:, -1])
     with torch.no_grad():
-        a_final, _ = model.denoise(model.prepare_observation(images, state)[0], T_world_ee, gripper, noise)
-    got = model.action_stats.unnormalize(a_final)
-    trans_err = (got[..., :3] - a_target[..., :3]).norm(dim=-1)
-    rot_err = Rotation.from_rotvec(got[..., 3:].reshape(-1, 3).double().numpy()).inv() * Rotation.from_rotvec(
-        a_target[..., 3:].reshape(-1, 3).double().numpy()
-    )
-    assert trans_err.max() < 1e-3, trans_err
-    assert np.degrees(rot_err.magnitude()).max() < 1.0
+        a, _ = model.denoise(images, T_world_ee, gripper, torch.randn(3, 4, 6, generator=torch.Generator().manual_seed(0)))
+    got = model.action_stats.unnormalize(a)
+    assert (got[..., :3] - a_target[..., :3]).norm(dim=-1).max() < 1e-4
+
+
+def _move_camera_back(model, cam: int, distance: float) -> None:
+    """Move camera `cam` back along its optical axis by `distance` metres (its view shrinks, nothing else)."""
+    back = torch.eye(4)
+    back[2, 3] = -distance
+    if bool(model.rig.mounted[cam]):
+        model.rig.T_ee_cam[cam] = model.rig.T_ee_cam[cam] @ back
+    else:
+        model.rig.T_world_cam_static[cam] = model.rig.T_world_cam_static[cam] @ back
+
+
+@pytest.mark.parametrize("cameras", [("front",), ("wrist",), ("front", "wrist")])
+@pytest.mark.parametrize("point_update", ["x0", "interpolate"])
+def test_zero_displacement_does_not_move_the_gripper_and_ignores_camera_distance(
+    toy_dataset_root, cameras, point_update
+):
+    """A network predicting zero displacement: `interpolate` keeps the action, `x0` takes exactly the
+    action-space DDIM step with x0 = the current action; moving a camera away changes nothing."""
+    from lerobot_rnd.sampler import ddim_step
+
+    policy, _ = _make_policy_cameras(toy_dataset_root, cameras, variant="I", point_update=point_update)
+    model = policy.model
+    model.action_stats.set(torch.full((6,), -0.05), torch.full((6,), 0.05))
+    model.network = _ZeroDisplacementNetwork(model)
+    images, T_world_ee, gripper = _observation(model)
+    a = 0.5 * torch.randn(3, 4, 6, generator=torch.Generator().manual_seed(0)).clamp(-1.8, 1.8)
+    a = a.clamp(-1, 1)
+    results = []
+    for move in (0.0, 0.3):
+        for c in range(len(cameras)):
+            _move_camera_back(model, c, move)
+        model._rasterizers.clear()
+        with torch.no_grad():
+            a_next, _, composite = model.sampler_step(images, T_world_ee, gripper, a, 1, full_composite=True)
+        n_obs = model.config.n_obs_steps
+        assert (composite[:, n_obs:] != images[:, -1:]).any(), "the gripper must be visible for this test"
+        results.append(a_next)
+    alpha, alpha_prev = model.inference_alpha_bar[1], model.inference_alpha_bar_prev[1]
+    expected = a if point_update == "interpolate" else ddim_step(a, a, alpha, alpha_prev)
+    for got in results:
+        np.testing.assert_allclose(got.numpy(), expected.numpy(), atol=1e-5)
+
+
+def test_paper_literal_ddim_point_update_moves_the_gripper_on_zero_displacement(toy_dataset_root):
+    """The ablation mode `point_update="ddim"` rescales the cloud about the camera centre: with a network that
+    predicts zero displacement it still moves the gripper (the bias the default modes remove)."""
+    policy, _ = _make_policy_cameras(toy_dataset_root, ("front",), variant="I", point_update="ddim")
+    model = policy.model
+    model.action_stats.set(torch.full((6,), -0.05), torch.full((6,), 0.05))
+    model.network = _ZeroDisplacementNetwork(model)
+    images, T_world_ee, gripper = _observation(model)
+    a = torch.zeros(3, 4, 6)
+    with torch.no_grad():
+        a_next, _, _ = model.sampler_step(images, T_world_ee, gripper, a, 1)
+    moved = model.action_stats.unnormalize(a_next)[..., :3].norm(dim=-1)
+    assert moved.min() > 1e-3, moved
+
+
+def test_default_point_update_is_camera_independent():
+    from lerobot_rnd.configuration_rnd import RnDConfig
+
+    assert RnDConfig().point_update in ("x0", "interpolate")
+
+
+def _make_policy_cameras(root, cameras, **overrides):
+    """A tiny policy on the toy dataset that uses only the given cameras ("front" static, "wrist" mounted)."""
+    from lerobot.configs.types import FeatureType
+    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
+    from lerobot.datasets.utils import dataset_to_policy_features
+
+    from lerobot_rnd.configuration_rnd import RnDConfig
+    from lerobot_rnd.modeling_rnd import RnDPolicy
+    from tests.conftest import TINY_POLICY_KWARGS
+
+    meta = LeRobotDatasetMetadata("local/toy_reach", root=root)
+    features = dataset_to_policy_features(meta.features)
+    keep = {f"observation.images.{c}" for c in cameras}
+    features = {k: f for k, f in features.items() if f.type is not FeatureType.VISUAL or k in keep}
+    cfg = RnDConfig(**{**TINY_POLICY_KWARGS, **overrides})
+    cfg.output_features = {k: f for k, f in features.items() if f.type is FeatureType.ACTION}
+    cfg.input_features = {k: f for k, f in features.items() if k not in cfg.output_features}
+    return RnDPolicy(cfg, dataset_meta=meta), meta
 
 
 def test_batched_and_per_sample_inference_agree(toy_dataset_root):

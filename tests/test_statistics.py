@@ -1,6 +1,7 @@
 """Min/max normalisation of R&D targets and its estimation from a dataset on disk."""
 
 import numpy as np
+import pytest
 import torch
 
 from lerobot_rnd.statistics import MinMaxStats, load_episode_arrays, sample_training_windows
@@ -37,3 +38,77 @@ def test_windows_are_clamped_and_padded_like_lerobot(tmp_path):
         if n_pad:
             assert tuple(action[i, -1].tolist()) in last_rows
         assert any(np.allclose(action[i, 0].numpy(), row) for row in all_actions)
+
+
+def _reference_action_range(root, horizon):
+    """Min/max of the EE-frame translation targets over every window, straight from the parquet files."""
+    import pandas as pd
+    from pathlib import Path
+
+    from tests.toy_data import R_WORLD_EE
+
+    frame = pd.concat([pd.read_parquet(f) for f in sorted(Path(root, "data").glob("**/*.parquet"))])
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for _, ep in frame.groupby("episode_index"):
+        actions = np.stack(ep.sort_values("frame_index")["action"].to_numpy())
+        for i in range(len(actions)):
+            window = actions[i : i + horizon, :3]  # padded steps are not targets
+            disp_world = np.cumsum(window * 0.01, axis=0)
+            disp_ee = disp_world @ R_WORLD_EE  # R^T d for each row
+            lo, hi = np.minimum(lo, disp_ee.min(0)), np.maximum(hi, disp_ee.max(0))
+    return lo, hi
+
+
+def test_action_statistics_cover_every_window_with_a_margin(toy_dataset_root):
+    from tests.test_policy import _make_policy
+
+    policy, _ = _make_policy(toy_dataset_root, action_stats_margin=0.1)
+    stats = policy.model.action_stats
+    lo, hi = _reference_action_range(toy_dataset_root, policy.config.chunk_size)
+    pad = 0.1 * (hi - lo)
+    np.testing.assert_allclose(stats.min[:3].numpy(), lo - pad, atol=1e-6)
+    np.testing.assert_allclose(stats.max[:3].numpy(), hi + pad, atol=1e-6)
+    # Rotation never changes in the toy data: its range is the minimum one, centred on 0.
+    assert torch.allclose(stats.min[3:], -stats.max[3:])
+    # So every training target lies strictly inside [-1, 1]: nothing is clamped.
+    edge = 1 / (1 + 2 * 0.1)
+    assert np.all(2 * ((hi - (lo - pad)) / ((hi + pad) - (lo - pad))) - 1 <= edge + 1e-6)
+
+
+def test_gripper_class_weight_is_the_open_closed_ratio(toy_dataset_root):
+    from tests.test_policy import _make_policy
+
+    policy, _ = _make_policy(toy_dataset_root)
+    # Toy episodes close the gripper for the second half of every episode: every window's targets count.
+    import pandas as pd
+    from pathlib import Path
+
+    frame = pd.concat([pd.read_parquet(f) for f in sorted(Path(toy_dataset_root, "data").glob("**/*.parquet"))])
+    closed = opened = 0
+    t = policy.config.chunk_size
+    for _, ep in frame.groupby("episode_index"):
+        g = np.stack(ep.sort_values("frame_index")["action"].to_numpy())[:, 3]
+        for i in range(len(g)):
+            w = g[i : i + t]
+            closed += int((w > 0).sum())
+            opened += int((w <= 0).sum())
+    assert float(policy.model.gripper_pos_weight) == pytest.approx(opened / closed, rel=1e-6)
+
+
+def test_non_finite_actions_are_refused_with_the_episode_and_frame(tmp_path):
+    import pandas as pd
+    from pathlib import Path
+
+    from tests.test_policy import _make_policy
+    from tests.toy_data import record_toy_dataset
+
+    root = record_toy_dataset(tmp_path / "toy_nan", n_episodes=2, episode_len=6)
+    files = sorted(Path(root, "data").glob("**/*.parquet"))
+    frame = pd.read_parquet(files[0])
+    actions = np.stack(frame["action"].to_numpy()).copy()
+    row = int(np.flatnonzero(frame["episode_index"].to_numpy() == 1)[2])
+    actions[row, 1] = np.nan
+    frame["action"] = list(actions)
+    frame.to_parquet(files[0])
+    with pytest.raises(ValueError, match=r"'action' contains NaN or inf \(episode 1, frame 2"):
+        _make_policy(root)

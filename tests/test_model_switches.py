@@ -1,0 +1,90 @@
+"""Training-side switches of the R&D model: EMA weights, history overlay, per-camera image loss."""
+
+import torch
+
+from tests.test_policy import _make_policy, _training_batch
+
+
+def test_ema_update_follows_the_warmed_up_decay_and_is_used_at_evaluation(toy_dataset_root, tmp_path):
+    from lerobot_rnd.modeling_rnd import RnDPolicy
+
+    policy, _ = _make_policy(toy_dataset_root, use_ema=True, ema_decay=0.5)
+    model = policy.model
+    before = [p.detach().clone() for p in model.network.parameters()]
+    with torch.no_grad():
+        for p in model.network.parameters():
+            p.add_(1.0)  # stands in for an optimiser step
+    policy.update()  # decay = min(0.5, (1 + 0) / (10 + 0)) = 0.1
+    for old, ema in zip(before, model.ema_network.parameters()):
+        torch.testing.assert_close(ema, old + 0.9)
+    policy.update()  # decay = min(0.5, 2 / 11)
+    for old, ema in zip(before, model.ema_network.parameters()):
+        torch.testing.assert_close(ema, old + 0.9 + (2 / 11) * 0 + (1 - 2 / 11) * 0.1)
+    policy.eval()
+    assert model.sampling_network is model.ema_network
+    policy.train()
+    assert model.sampling_network is model.network
+    # The EMA weights travel with the checkpoint.
+    policy.save_pretrained(tmp_path / "ckpt")
+    loaded = RnDPolicy.from_pretrained(tmp_path / "ckpt")
+    for a, b in zip(model.ema_network.parameters(), loaded.model.ema_network.parameters()):
+        torch.testing.assert_close(a, b)
+
+
+def test_history_overlay_switch(toy_dataset_root):
+    for overlay in (False, True):
+        policy, _ = _make_policy(toy_dataset_root, history_rgb_overlay=overlay)
+        model = policy.model
+        state = torch.tensor([0.0, 0.0, 0.2, 1.0]).repeat(2, 2, 1)
+        images = torch.rand(2, 2, 2, 3, 64, 64)
+        images, T_world_ee, gripper = model.prepare_observation(images, state)
+        T_ee = torch.eye(4).repeat(2, policy.config.chunk_size, 1, 1)
+        inputs = model._network_inputs(images, T_world_ee, gripper, T_ee, full_composite=True)
+        n_obs = policy.config.n_obs_steps
+        history = inputs["obs_rgb"]
+        assert inputs["obs_points"].abs().sum() > 0, "the history gripper must be visible for this test"
+        torch.testing.assert_close(inputs["composite"][:, :n_obs], history)
+        if overlay:
+            assert not torch.equal(history, images)
+        else:
+            torch.testing.assert_close(history, images)  # the real images, untouched
+        # Future frames always carry the render.
+        assert not torch.equal(inputs["composite"][:, n_obs:], images[:, -1:].expand_as(inputs["composite"][:, n_obs:]))
+
+
+class _OffsetNetwork(torch.nn.Module):
+    """Predicts the (forced) zero target plus 1 in camera 0 and exactly the target in camera 1."""
+
+    def __init__(self, model, inner):
+        super().__init__()
+        self.model, self.inner = model, inner
+
+    def forward(self, obs_rgb, obs_points, future_rgb, future_points, gripper_state, timestep, noisy_action,
+                patch_index=None):
+        _, update, logits = self.inner(obs_rgb, obs_points, future_rgb, future_points, gripper_state, timestep,
+                                       noisy_action, patch_index=patch_index)
+        zero = self.model.normalize_displacement(torch.zeros_like(future_points).flatten(4))
+        zero[:, :, 0] += 1.0
+        return zero, update, logits
+
+
+def test_image_loss_is_a_per_camera_mean_summed_over_cameras(toy_dataset_root):
+    """Camera 0 off by 1 everywhere, camera 1 exact: the image loss is 1 whatever each camera's pixel count
+    (pooling all pixels would give n0 / (n0 + n1))."""
+    policy, _ = _make_policy(toy_dataset_root, variant="AI")
+    model = policy.model
+    original = model.noisy_sample_targets
+
+    def zero_target(*args, **kwargs):
+        out = original(*args, **kwargs)
+        out["displacement"] = torch.zeros_like(out["displacement"])
+        n0 = int(out["target_mask"][:, :, 0].sum())
+        n1 = int(out["target_mask"][:, :, 1].sum())
+        assert n0 > 0 and n1 > 0 and n0 != n1
+        return out
+
+    model.noisy_sample_targets = zero_target
+    model.network = _OffsetNetwork(model, model.network)
+    batch = _training_batch(toy_dataset_root, policy.config)
+    _, info = policy.forward(batch)
+    assert abs(info["image_loss"] - 1.0) < 1e-5, info
