@@ -58,14 +58,18 @@ CHUNK = 8
 
 RND_CONFIGS = {
     "paper": {},  # RnDConfig defaults
-    "cpu": {"dim_model": 256, "n_layers": 4, "n_heads": 8},
+    # policies_config/metaworld/rnd_ai_cpu.json: patch 32, 4 gripper patches per future frame, bf16 autocast.
+    "cpu": {"dim_model": 256, "n_layers": 4, "n_heads": 8, "patch_size": 32, "gripper_patches": 4,
+            "autocast_bf16": True},
+    "cpu_legacy": {"dim_model": 256, "n_layers": 4, "n_heads": 8},  # the CPU config before the CPU tier
 }
 
 
 def describe_rnd(name: str, cfg) -> str:
     return (
         f"{name}: {cfg.variant}, {cfg.n_layers}L x {cfg.dim_model}, {cfg.n_heads} heads, "
-        f"patch {cfg.patch_size}, "
+        f"patch {cfg.patch_size}{f', {cfg.gripper_patches} gripper patches' if cfg.gripper_patches else ''}"
+        f"{', bf16' if cfg.autocast_bf16 else ''}, "
         f"{cfg.num_inference_steps} DDIM + {int(cfg.final_action_step)} final"
     )
 

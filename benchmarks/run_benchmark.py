@@ -112,6 +112,18 @@ SCALES: dict[str, dict] = {
         },
     ),
 }
+SCALES["cpu"] = dict(
+    tasks="reach-v3,button-press-topdown-v3,drawer-close-v3", demos="10", device="cpu", steps=2000, batch_size=8,
+    save_freq=250, log_freq=50, num_workers=2, eval_episodes=50, eval_chunk=10, eval_batch_size=10,
+    episode_length=300, grid=5, min_train_slice_s=120,
+    # Each method at its own CPU size (policies_config/metaworld/*_cpu.json): R&D's CPU tier (patch 32,
+    # 4 gripper patches per future frame, width 256 x 4 layers, bf16 autocast: 6.5M), ACT as configured for
+    # MetaWorld (51.6M, mostly its ResNet-18), DP with a [128, 256, 512] U-Net (29.5M incl. its ResNet-18).
+    config_files={"rnd_ai": "rnd_ai_cpu.json", "rnd_a": "rnd_ai_cpu.json", "rnd_i": "rnd_ai_cpu.json",
+                  "act": "act_cpu.json", "diffusion": "diffusion_cpu.json"},
+    method_args={"rnd": [], "act": [], "diffusion": [],
+                 "rnd_a": ["--policy.variant=A"], "rnd_i": ["--policy.variant=I"]},
+)
 # Applied at every scale: matched horizons, no downloads, no Hub.
 COMMON_METHOD_ARGS = {
     "rnd": ["--policy.n_obs_steps=2", "--policy.chunk_size=8", "--policy.n_action_steps=8"],
@@ -436,9 +448,14 @@ class Benchmark:
     def run_dir(self, method: str, task: str, n: int, seed: int) -> Path:
         return self.work / "runs" / self.a.protocol / method / task / f"n{n}" / f"seed{seed}"
 
+    def config_file(self, method: str) -> Path:
+        files = SCALES[self.a.scale].get("config_files", {})
+        return CONFIG_DIR / files.get(method, METHODS[method][0])
+
     def method_args(self, method: str) -> list[str]:
         fam = method_family(method)
-        args = list(COMMON_METHOD_ARGS[fam]) + list(SCALES[self.a.scale]["method_args"][fam])
+        per_scale = SCALES[self.a.scale]["method_args"]
+        args = list(COMMON_METHOD_ARGS[fam]) + list(per_scale[fam]) + list(per_scale.get(method, []))
         for spec in self.a.train_arg or []:
             who, _, arg = spec.partition(":")
             if who in ("all", method, fam):
@@ -450,7 +467,7 @@ class Benchmark:
         root, repo_id = self.dataset_root(task, n)
         save_freq = a.save_freq if a.save_freq > 0 else a.steps
         return tool_argv("lerobot-train", a.launcher) + [
-            f"--config_path={CONFIG_DIR / METHODS[method][0]}",
+            f"--config_path={self.config_file(method)}",
             f"--dataset.repo_id={repo_id}", f"--dataset.root={root}", "--dataset.video_backend=pyav",
             f"--env.task={task}", f"--env.episode_length={a.episode_length}",
             f"--output_dir={out_dir}", f"--job_name={method}_{task}_n{n}_s{seed}",
@@ -571,6 +588,16 @@ class Benchmark:
         m = re.findall(r"updt_s:([0-9.]+)", text)
         if m:
             st["update_s_last_logged"] = float(m[-1])
+            st["update_s_median_logged"] = sorted(float(x) for x in m)[len(m) // 2]
+        m = re.findall(r"data_s:([0-9.]+)", text)
+        if m:
+            st["data_s_median_logged"] = sorted(float(x) for x in m)[len(m) // 2]
+        curve = {}
+        for step, loss in re.findall(r"step:([0-9.]+K?) .*?loss:([0-9.]+)", text):
+            k = int(float(step[:-1]) * 1000) if step.endswith("K") else int(step)
+            curve[k] = float(loss)  # a resumed run logs its steps again: the last value wins
+        if curve:
+            st["loss_curve"] = sorted(curve.items())
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, method: str, task: str, n: int, seed: int, st: dict) -> None:
@@ -655,10 +682,20 @@ class Benchmark:
             return EXIT_MORE
         return EXIT_FAILED if self.failed else EXIT_OK
 
+    def result_path(self, method: str, task: str, n: int, seed: int) -> Path:
+        """The committed JSON of one finished run (survives a fresh clone; the work dir does not)."""
+        return self.out / "runs" / f"{method}__{task}__n{n}__seed{seed}.json"
+
+    def run_state(self, method: str, task: str, n: int, seed: int) -> dict:
+        st = _read_json(self.run_dir(method, task, n, seed) / "run.json")
+        if st is None:
+            st = _read_json(self.result_path(method, task, n, seed))
+        return st or {}
+
     def run_one(self, method: str, task: str, n: int, seed: int) -> None:
         a = self.a
         rdir = self.run_dir(method, task, n, seed)
-        st = _read_json(rdir / "run.json") or {}
+        st = self.run_state(method, task, n, seed)
         if st.get("status") == "done" and not a.dry_run:
             return
         if st.get("status") == "failed" and not a.retry_failed:
@@ -674,6 +711,9 @@ class Benchmark:
             if not a.dry_run:
                 st["status"] = "done"
                 st.pop("error", None)
+                self._parse_train_log(rdir / "train.log", st)
+                _write_json(self.result_path(method, task, n, seed), st)
+                print(f"wrote {self.result_path(method, task, n, seed)}", flush=True)
                 if a.prune_optimizer:
                     ts = (rdir / "train" / "checkpoints" / "last").resolve() / "training_state"
                     if ts.is_dir():
@@ -699,7 +739,7 @@ class Benchmark:
                 for seed in a.seeds:
                     for method in a.methods:
                         rdir = self.run_dir(method, task, n, seed)
-                        st = _read_json(rdir / "run.json") or {}
+                        st = self.run_state(method, task, n, seed)
                         es = self.eval_sets.get(task, {})
                         succ: list[bool] = []
                         seeds: list = []
@@ -727,6 +767,7 @@ class Benchmark:
                             "per_episode_success": succ,
                             "eval_seeds": seeds if a.protocol == "random" else None,
                             "checkpoint": st.get("checkpoint"),
+                            "loss_curve": st.get("loss_curve"),
                             "run_dir": _rel(rdir),
                             "commands": st.get("commands", {}),
                             "error": st.get("error"),
@@ -754,7 +795,7 @@ class Benchmark:
                              "policies_config/metaworld/act.json; DP: Adam 1e-4, cosine, 500 warm-up)",
             },
             "method_args": {m: self.method_args(m) for m in a.methods},
-            "config_files": {m: _rel(CONFIG_DIR / METHODS[m][0]) for m in a.methods},
+            "config_files": {m: _rel(self.config_file(m)) for m in a.methods},
             "record_seed": a.record_seed, "eval_seed": a.eval_seed, "episode_length": a.episode_length,
             "eval_episodes_per_cell": (a.eval_episodes if a.protocol == "random" else "one per valid grid point"),
             "ci": "Wilson score interval, 95%",
@@ -783,6 +824,8 @@ class Benchmark:
         _write_json(self.out / "results.json", result)
         (self.out / "results.md").write_text(markdown_report(result))
         plot_success_vs_demos(result, self.out / "success_vs_demos.png")
+        plot_success_per_task(result, self.out / "success_per_task.png")
+        plot_loss_curves(result, self.out / "loss_curves.png")
         if a.protocol == "spatial":
             for task in a.tasks:
                 plot_heatmap(result, task, self.out / f"heatmap_{task}.png")
@@ -962,6 +1005,71 @@ def plot_success_vs_demos(res: dict, path: Path) -> None:
     if b["scale"] == "smoke":
         title += " (pipeline check, not a result)"
     fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_success_per_task(res: dict, path: Path) -> None:
+    """Bars: success per task (and the mean over tasks) per method, Wilson 95% intervals, all demo counts pooled."""
+    plt = _mpl()
+    b, runs = res["benchmark"], res["runs"]
+    panels = list(b["tasks"]) + (["mean over tasks"] if len(b["tasks"]) > 1 else [])
+    fig, ax = plt.subplots(figsize=(1.6 + 1.5 * len(panels) * max(1, len(b["methods"])) / 3, 3.6))
+    width = 0.8 / max(1, len(b["methods"]))
+    for j, m in enumerate(b["methods"]):
+        xs, ys, lo, hi = [], [], [], []
+        for i, panel in enumerate(panels):
+            if panel == "mean over tasks":
+                cells = [cell_stats(runs, m, t, None) for t in b["tasks"]]
+                if any(c is None for c in cells):
+                    continue
+                rate = sum(c["rate"] for c in cells) / len(cells)
+                s = {"rate": rate, "lo": rate, "hi": rate}
+            else:
+                s = cell_stats(runs, m, panel, None)
+            if s is None:
+                continue
+            xs.append(i + (j - (len(b["methods"]) - 1) / 2) * width)
+            ys.append(100 * s["rate"])
+            lo.append(100 * (s["rate"] - s["lo"]))
+            hi.append(100 * (s["hi"] - s["rate"]))
+        if xs:
+            ax.bar(xs, ys, width=width, yerr=[lo, hi], capsize=3, label=METHODS[m][1])
+    ax.set_xticks(range(len(panels)))
+    ax.set_xticklabels(panels, fontsize=8)
+    ax.set_ylim(0, 105)
+    ax.set_ylabel("success rate (%), Wilson 95%")
+    ax.grid(axis="y", alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    ax.set_title(f"{b['scale']} scale: {', '.join(str(n) for n in b['demos'])} demos, "
+                 f"{b['protocol']} placements", fontsize=9)  # fmt: skip
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_loss_curves(res: dict, path: Path) -> None:
+    """Training loss against step, one panel per task, one line per method (each method's own loss)."""
+    plt = _mpl()
+    b, runs = res["benchmark"], res["runs"]
+    tasks = [t for t in b["tasks"] if any(r.get("loss_curve") and r["task"] == t for r in runs)]
+    if not tasks:
+        return
+    fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
+    for ax, task in zip(axes[0], tasks, strict=True):
+        for r in runs:
+            if r["task"] != task or not r.get("loss_curve"):
+                continue
+            steps, losses = zip(*r["loss_curve"])
+            ax.plot(steps, losses, label=f"{METHODS[r['method']][1]} (n{r['demos']}, s{r['seed']})")
+        ax.set_yscale("log")
+        ax.set_title(task, fontsize=9)
+        ax.set_xlabel("training step")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("training loss (each method's own)")
+    axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -1195,6 +1303,8 @@ def main(argv: list[str] | None = None) -> int:
         res["rnd_losses"] = rnd_losses(res["runs"])
         (Path(a.out) / "results.md").write_text(markdown_report(res))
         plot_success_vs_demos(res, Path(a.out) / "success_vs_demos.png")
+        plot_success_per_task(res, Path(a.out) / "success_per_task.png")
+        plot_loss_curves(res, Path(a.out) / "loss_curves.png")
         if res["benchmark"]["protocol"] == "spatial":
             for task in res["benchmark"]["tasks"]:
                 plot_heatmap(res, task, Path(a.out) / f"heatmap_{task}.png")

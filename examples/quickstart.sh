@@ -1,27 +1,51 @@
 #!/usr/bin/env bash
-# Quickstart on a CPU, in minutes: record scripted MetaWorld demonstrations, train a small R&D-AI,
-# evaluate it with lerobot-eval (success rate + videos). Everything lands in outputs/quickstart/.
-# Override the sizes with environment variables, e.g. STEPS=2000 EPISODES=20 bash examples/quickstart.sh
+# Quickstart on a CPU, in minutes: record scripted MetaWorld demonstrations, train the CPU tier of R&D-AI
+# (policies_config/metaworld/rnd_ai_cpu.json), evaluate it with lerobot-eval (success rate + videos).
+# Everything lands in outputs/quickstart/; the timings and the success rate in outputs/quickstart/summary.json.
+# Override the sizes with environment variables, e.g. STEPS=1000 EPISODES=20 bash examples/quickstart.sh
 set -euo pipefail
 export MUJOCO_GL="${MUJOCO_GL:-egl}" HF_HUB_OFFLINE=1
 TASK="${TASK:-reach-v3}"
 EPISODES="${EPISODES:-10}"
-STEPS="${STEPS:-600}"
-EVAL_EPISODES="${EVAL_EPISODES:-5}"
+STEPS="${STEPS:-500}"
+EVAL_EPISODES="${EVAL_EPISODES:-20}"
+EVAL_SEED="${EVAL_SEED:-1000}"
 OUT="${OUT:-outputs/quickstart}"
 DATA="$OUT/data/mw_${TASK}_${EPISODES}"
+t0=$(date +%s)
 
+echo "== 1/3 recording $EPISODES scripted demos of $TASK"
 if [ ! -d "$DATA" ]; then
   lerobot-rnd-record --task "$TASK" --episodes "$EPISODES" --root "$DATA" --repo-id "local/mw_${TASK}_${EPISODES}" --seed 0
 fi
+t1=$(date +%s)
 
+echo "== 2/3 training R&D-AI (CPU tier) for $STEPS steps"
 rm -rf "$OUT/train"
 lerobot-train --config_path=policies_config/metaworld/rnd_ai_cpu.json \
   --dataset.repo_id="local/mw_${TASK}_${EPISODES}" --dataset.root="$DATA" --env.task="$TASK" \
-  --steps="$STEPS" --save_freq="$STEPS" --log_freq=50 --num_workers=2 --output_dir="$OUT/train"
+  --steps="$STEPS" --save_freq="$STEPS" --log_freq=50 --output_dir="$OUT/train"
+t2=$(date +%s)
 
+echo "== 3/3 evaluating $EVAL_EPISODES episodes (seeds from $EVAL_SEED)"
+rm -rf "$OUT/eval"
 lerobot-eval --policy.path="$OUT/train/checkpoints/last/pretrained_model" \
-  --env.type=rnd_mw --env.task="$TASK" --eval.n_episodes="$EVAL_EPISODES" --eval.batch_size=1 \
-  --policy.device=cpu --seed=1000 --output_dir="$OUT/eval"
+  --env.type=rnd_mw --env.task="$TASK" --eval.n_episodes="$EVAL_EPISODES" --eval.batch_size=10 \
+  --policy.device=cpu --seed="$EVAL_SEED" --output_dir="$OUT/eval"
+t3=$(date +%s)
 
-echo "Results: $OUT/eval/eval_info.json; videos: $OUT/eval/videos/"
+python - "$OUT" "$t0" "$t1" "$t2" "$t3" "$TASK" "$EPISODES" "$STEPS" <<'PY'
+import json, os, platform, sys
+out, t0, t1, t2, t3, task, episodes, steps = sys.argv[1], *map(int, sys.argv[2:6]), *sys.argv[6:]
+info = json.load(open(f"{out}/eval/eval_info.json"))
+succ = [bool(s) for s in info["per_task"][0]["metrics"]["successes"]]
+summary = {
+    "task": task, "demos": int(episodes), "steps": int(steps), "eval_episodes": len(succ),
+    "successes": sum(succ), "success_rate": sum(succ) / len(succ),
+    "seconds": {"record": t1 - t0, "train": t2 - t1, "eval": t3 - t2, "total": t3 - t0},
+    "machine": {"cpus": os.cpu_count(), "cpu": platform.processor() or platform.machine()},
+}
+json.dump(summary, open(f"{out}/summary.json", "w"), indent=1)
+print(f"Success {summary['successes']}/{len(succ)} on {task}; total {summary['seconds']['total']} s "
+      f"(record {t1 - t0} s, train {t2 - t1} s, eval {t3 - t2} s). Videos: {out}/eval/videos/")
+PY

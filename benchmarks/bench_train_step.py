@@ -1,0 +1,244 @@
+#!/usr/bin/env python
+"""Where one training step goes: R&D's CPU configs next to ACT and Diffusion Policy, in one process.
+
+For every method it builds the policy, its pre-processor, the optimiser and the LeRobot dataset exactly as
+`lerobot-train --config_path=policies_config/metaworld/<method>.json` does, then times, per step,
+
+  data     one batch from the dataset (`DataLoader`, num_workers=0: the pure cost; lerobot-train hides part of
+           it behind the model with worker processes, which share the same cores)
+  pre      the pre-processor (normalisation, device)
+  render   R&D only: rasterising the gripper (`RnDModel.render_frames`, inside `forward`)
+  forward  `policy.forward` minus rendering
+  backward `loss.backward()`
+  optim    gradient clipping, `optimizer.step()`, `zero_grad`, and `policy.update()` (EMA) if defined
+
+Methods are timed round-robin (one step of each in turn, after warm-up steps), so load from other processes
+hits them alike; the table reports medians and each method's total relative to the first one
+(`--reference`). Results: a printed table and `--out` JSON.
+
+    python benchmarks/bench_train_step.py --dataset-root data/mw_reach-v3_10 \
+        --out benchmarks/results/train_step_cpu.json
+
+The dataset: `lerobot-rnd-record --task reach-v3 --episodes 10 --root data/mw_reach-v3_10 --seed 0`.
+"""
+
+
+import argparse
+import contextlib
+import json
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+os.environ.setdefault("HF_HUB_OFFLINE", "1")
+
+import torch
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO_ROOT))
+
+PHASES = ("data", "pre", "render", "forward", "backward", "optim")
+DEFAULT_METHODS = "rnd_ai_cpu_legacy,rnd_ai_cpu,act_cpu,diffusion_cpu"
+
+
+def load_train_config(name: str, dataset_root: str, batch_size: int):
+    """A TrainPipelineConfig from policies_config/metaworld/<name>.json, on CPU, for `dataset_root`."""
+    from lerobot.configs import parser
+    from lerobot.configs.train import TrainPipelineConfig
+
+    import lerobot_policy_rnd  # noqa: F401  (registers --policy.type=rnd)
+
+    path = REPO_ROOT / "policies_config" / "metaworld" / f"{name}.json"
+    if not path.exists():
+        raise FileNotFoundError(f"{path} does not exist: --methods takes names of policies_config/metaworld/*.json")
+    root = Path(dataset_root).resolve()
+    args = [
+        f"--config_path={path}",
+        f"--dataset.root={root}",
+        f"--dataset.repo_id=local/{root.name}",
+        f"--batch_size={batch_size}",
+        "--policy.device=cpu",
+        "--output_dir=/tmp/unused_bench_train_step",
+    ]
+    def parse(cfg: TrainPipelineConfig):
+        return cfg
+
+    with _argv(args):
+        cfg = parser.wrap()(parse)()  # draccus parses sys.argv exactly as lerobot-train does
+    assert isinstance(cfg, TrainPipelineConfig)
+    cfg.validate()
+    return cfg
+
+
+@contextlib.contextmanager
+def _argv(args: list[str]):
+    old = sys.argv
+    sys.argv = ["bench_train_step", *args]
+    try:
+        yield
+    finally:
+        sys.argv = old
+
+
+class Method:
+    """One policy with its data, pre-processor and optimiser, stepping like lerobot-train."""
+
+    def __init__(self, name: str, dataset_root: str, batch_size: int, seed: int):
+        from lerobot.datasets.factory import make_dataset
+        from lerobot.optim.factory import make_optimizer_and_scheduler
+        from lerobot.policies.factory import make_policy, make_pre_post_processors
+
+        torch.manual_seed(seed)
+        self.name = name
+        cfg = load_train_config(name, dataset_root, batch_size)
+        self.cfg = cfg
+        t0 = time.perf_counter()
+        self.dataset = make_dataset(cfg)
+        self.policy = make_policy(cfg=cfg.policy, ds_meta=self.dataset.meta)
+        self.setup_s = time.perf_counter() - t0
+        self.pre, _ = make_pre_post_processors(policy_cfg=cfg.policy, dataset_stats=self.dataset.meta.stats)
+        self.optimizer, self.scheduler = make_optimizer_and_scheduler(cfg, self.policy)
+        self.grad_clip = cfg.optimizer.grad_clip_norm
+        generator = torch.Generator().manual_seed(seed)
+        self.loader = torch.utils.data.DataLoader(
+            self.dataset, batch_size=batch_size, shuffle=True, num_workers=0, drop_last=True, generator=generator
+        )
+        self._it = iter(self.loader)
+        self.n_params = sum(p.numel() for p in self.policy.parameters() if p.requires_grad)
+        self.render_s = 0.0
+        model = getattr(self.policy, "model", None)
+        if model is not None and hasattr(model, "render_frames"):
+            original = model.render_frames
+
+            def timed_render(*args, **kwargs):
+                t = time.perf_counter()
+                out = original(*args, **kwargs)
+                self.render_s += time.perf_counter() - t
+                return out
+
+            model.render_frames = timed_render
+        self.times: dict[str, list[float]] = {p: [] for p in PHASES}
+        self.losses: list[float] = []
+
+    def _next(self):
+        try:
+            return next(self._it)
+        except StopIteration:
+            self._it = iter(self.loader)
+            return next(self._it)
+
+    def step(self, record: bool) -> None:
+        t0 = time.perf_counter()
+        batch = self._next()
+        t1 = time.perf_counter()
+        batch = self.pre(batch)
+        t2 = time.perf_counter()
+        self.policy.train()
+        self.render_s = 0.0
+        loss, _ = self.policy.forward(batch)
+        t3 = time.perf_counter()
+        loss.backward()
+        t4 = time.perf_counter()
+        torch.nn.utils.clip_grad_norm_(self.policy.parameters(), self.grad_clip)
+        self.optimizer.step()
+        self.optimizer.zero_grad()
+        if self.scheduler is not None:
+            self.scheduler.step()
+        if hasattr(self.policy, "update"):
+            self.policy.update()
+        t5 = time.perf_counter()
+        if record:
+            self.times["data"].append(t1 - t0)
+            self.times["pre"].append(t2 - t1)
+            self.times["render"].append(self.render_s)
+            self.times["forward"].append(t3 - t2 - self.render_s)
+            self.times["backward"].append(t4 - t3)
+            self.times["optim"].append(t5 - t4)
+            self.losses.append(float(loss))
+
+    def summary(self) -> dict:
+        med = {p: statistics.median(v) for p, v in self.times.items()}
+        totals = [sum(self.times[p][i] for p in PHASES) for i in range(len(self.times["data"]))]
+        pol = self.cfg.policy
+        return {
+            "method": self.name,
+            "policy_type": pol.type,
+            "parameters": self.n_params,
+            "median_s": med,
+            "median_total_s": statistics.median(totals),
+            "p90_total_s": sorted(totals)[int(0.9 * (len(totals) - 1))],
+            "steps_timed": len(totals),
+            "setup_s": self.setup_s,
+            "loss_first_last": [self.losses[0], self.losses[-1]] if self.losses else None,
+            "settings": {
+                k: getattr(pol, k)
+                for k in ("dim_model", "n_layers", "patch_size", "image_size", "n_obs_steps", "chunk_size",
+                          "horizon", "down_dims", "gripper_patches", "cpu_bf16", "variant")
+                if hasattr(pol, k)
+            },
+        }
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--dataset-root", default="data/mw_reach-v3_10")
+    p.add_argument("--methods", default=DEFAULT_METHODS, help="names of policies_config/metaworld/*.json")
+    p.add_argument("--reference", default=None, help="method the ratios are relative to (default: the first)")
+    p.add_argument("--batch-size", type=int, default=8)
+    p.add_argument("--warmup", type=int, default=2)
+    p.add_argument("--steps", type=int, default=6)
+    p.add_argument("--threads", type=int, default=None, help="torch threads (default: all cores)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default=None, help="JSON output path")
+    a = p.parse_args(argv)
+    if a.threads:
+        torch.set_num_threads(a.threads)
+    names = [m for m in a.methods.split(",") if m]
+    methods = []
+    for name in names:
+        print(f"building {name} ...", flush=True)
+        methods.append(Method(name, a.dataset_root, a.batch_size, a.seed))
+    for i in range(a.warmup + a.steps):
+        for m in methods:
+            m.step(record=i >= a.warmup)
+        print(f"step {i + 1}/{a.warmup + a.steps}", flush=True)
+    rows = [m.summary() for m in methods]
+    ref_name = a.reference or names[0]
+    ref = next(r for r in rows if r["method"] == ref_name)
+    for r in rows:
+        r["speedup_vs_reference"] = ref["median_total_s"] / r["median_total_s"]
+
+    head = f"{'method':<22}{'params':>9}" + "".join(f"{p:>10}" for p in PHASES) + f"{'total':>9}{'x ref':>8}"
+    print(f"\nOne training step, batch {a.batch_size}, medians of {a.steps} steps (s); x ref = speed-up over "
+          f"{ref_name}\n" + head)
+    for r in rows:
+        print(
+            f"{r['method']:<22}{r['parameters'] / 1e6:>8.1f}M"
+            + "".join(f"{r['median_s'][p]:>10.3f}" for p in PHASES)
+            + f"{r['median_total_s']:>9.3f}{r['speedup_vs_reference']:>8.2f}"
+        )
+    if a.out:
+        out = {
+            "benchmark": "train_step",
+            "command": "python " + " ".join([sys.argv[0], *(argv if argv is not None else sys.argv[1:])]),
+            "batch_size": a.batch_size,
+            "warmup": a.warmup,
+            "steps": a.steps,
+            "threads": torch.get_num_threads(),
+            "dataset_root": a.dataset_root,
+            "reference": ref_name,
+            "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
+                        "torch": torch.__version__, "cpu_capability": torch.backends.cpu.get_cpu_capability()},
+            "results": rows,
+        }
+        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(a.out).write_text(json.dumps(out, indent=1, default=str))
+        print(f"wrote {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,168 @@
+#!/usr/bin/env python
+"""Write the CPU-results section of docs/BENCHMARKS.md (and the README's result lines) from the committed JSON.
+
+Nothing in that section is typed by hand: it is rebuilt from
+
+  benchmarks/results/train_step_cpu.json    benchmarks/bench_train_step.py (where a training step goes)
+  benchmarks/results/cpu/results.json       benchmarks/run_benchmark.py --scale cpu (success vs ACT / DP)
+  benchmarks/results/ablation_cpu.json      benchmarks/run_ablation.py (validation seeds, reach-v3)
+  benchmarks/results/quickstart_cpu.json    examples/quickstart.sh's summary.json, copied
+  benchmarks/results/device_check_*.json    benchmarks/device_check.py (GPU lease)
+
+whichever exist, between the markers `<!-- cpu-results:start -->` and `<!-- cpu-results:end -->`; the plots of
+the CPU benchmark are copied to docs/images/.
+
+    python benchmarks/write_benchmarks_md.py
+"""
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "benchmarks" / "results"
+DOC = REPO / "docs" / "BENCHMARKS.md"
+START, END = "<!-- cpu-results:start -->", "<!-- cpu-results:end -->"
+
+
+def _load(path: Path):
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def train_step_section(res: dict) -> list[str]:
+    phases = ("data", "pre", "render", "forward", "backward", "optim")
+    lines = [
+        "### Where a training step goes (CPU)",
+        "",
+        f"`{res['command']}` ({res['steps']} timed steps after {res['warmup']} warm-up, batch {res['batch_size']}, "
+        f"{res['threads']} torch threads, {res['machine']['cores']} cores, torch {res['machine']['torch']}; "
+        f"JSON: [`benchmarks/results/train_step_cpu.json`](../benchmarks/results/train_step_cpu.json)). Medians in "
+        "seconds; `data` is one batch from LeRobot's dataset in the main process (lerobot-train moves it to "
+        "worker processes, which share the same two cores); *x ref* is the speed-up of the whole step over "
+        f"`{res['reference']}` measured in the same run.",
+        "",
+        "| config | params | " + " | ".join(phases) + " | total | model step (no data) | x ref |",
+        "| --- | ---: |" + " ---: |" * (len(phases) + 3),
+    ]
+    ref = next(r for r in res["results"] if r["method"] == res["reference"])
+    ref_model = ref["median_total_s"] - ref["median_s"]["data"]
+    for r in res["results"]:
+        m = r["median_s"]
+        model = r["median_total_s"] - m["data"]
+        lines.append(
+            f"| `{r['method']}` | {r['parameters'] / 1e6:.1f}M | " + " | ".join(f"{m[p]:.3f}" for p in phases)
+            + f" | {r['median_total_s']:.3f} | {model:.3f} ({ref_model / model:.1f}x) | {r['speedup_vs_reference']:.2f} |"
+        )
+    return lines
+
+
+def cpu_benchmark_section(res: dict) -> list[str]:
+    b = res["benchmark"]
+    runs = res["runs"]
+    lines = [
+        "### R&D vs ACT vs Diffusion Policy on MetaWorld (CPU scale)",
+        "",
+        f"`{b['command'].split('python', 1)[-1].strip() if 'python' in b['command'] else b['command']}`",
+        "",
+        f"{'Complete' if b['complete'] else '**Incomplete**: the runs listed as pending were not done in this session'}. "
+        f"Written {b['written']}. {res['settings']['matched']['steps']} training steps of batch "
+        f"{res['settings']['matched']['batch_size']} for every method, demos recorded with seed "
+        f"{res['settings']['record_seed']}, evaluation seeds from {res['settings']['eval_seed']} "
+        f"({res['settings']['eval_episodes_per_cell']} episodes per cell, {res['settings']['episode_length']}-step "
+        "episodes, `lerobot-eval --env.type=rnd_mw`). Success rate with its Wilson 95% interval. JSON per run: "
+        "[`benchmarks/results/cpu/runs/`](../benchmarks/results/cpu/runs/); all runs: "
+        "[`benchmarks/results/cpu/results.json`](../benchmarks/results/cpu/results.json).",
+        "",
+        "| method | task | demos | success | 95% interval | episodes | params | train loop | eval | final loss |",
+        "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
+    ]
+    for r in runs:
+        if not r["eval_episodes"]:
+            lines.append(f"| {r['label']} | {r['task']} | {r['demos']} | not run | | | | | | |")
+            continue
+        lo, hi = r["ci95"]
+        curve = r.get("loss_curve") or []
+        final = f"{curve[-1][1]:.3f}" if curve else "–"
+        params = f"{r['n_params'] / 1e6:.1f}M" if r.get("n_params") else "–"
+        tl = f"{r['train_seconds'] / 60:.1f} min" if r.get("train_seconds") else "–"
+        ev = f"{r['eval_seconds'] / 60:.1f} min" if r.get("eval_seconds") else "–"
+        lines.append(
+            f"| {r['label']} | {r['task']} | {r['demos']} | {100 * r['success_rate']:.0f}% | "
+            f"{100 * lo:.0f}–{100 * hi:.0f}% | {r['eval_episodes']} | {params} | {tl} | {ev} | {final} |"
+        )
+    lines += [
+        "",
+        "![success per task](images/cpu_success_per_task.png)",
+        "",
+        "Training loss curves (each method's own loss; did it flatten?):",
+        "",
+        "![loss curves](images/cpu_loss_curves.png)",
+    ]
+    return lines
+
+
+def ablation_section(res: dict) -> list[str]:
+    lines = [
+        "### Ablations and validation (reach-v3, validation seeds, not the evaluation seeds)",
+        "",
+        res.get("description", ""),
+        "",
+        "| row | training switches | sampler switches | steps | final loss | success | 95% interval | episodes |",
+        "| --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
+    ]
+    for row in res["rows"]:
+        lo, hi = row["ci95"]
+        lines.append(
+            f"| {row['name']} | `{row['train']}` | `{row['sampler']}` | {row['steps']} | "
+            f"{row['final_loss'] if row.get('final_loss') is not None else '–'} | {100 * row['success_rate']:.0f}% | "
+            f"{100 * lo:.0f}–{100 * hi:.0f}% | {row['episodes']} |"
+        )
+    return lines
+
+
+def quickstart_section(res: dict) -> list[str]:
+    s = res["seconds"]
+    return [
+        "### Quickstart",
+        "",
+        f"`bash examples/quickstart.sh` ({res['demos']} demos of {res['task']}, {res['steps']} training steps, "
+        f"{res['eval_episodes']} evaluation episodes): **{res['successes']}/{res['eval_episodes']} successes "
+        f"({100 * res['success_rate']:.0f}%)** in {s['total'] / 60:.1f} minutes (record {s['record']} s, train "
+        f"{s['train']} s, evaluate {s['eval']} s) on {res['machine']['cpus']} CPU cores.",
+    ]
+
+
+def main() -> int:
+    parts = [START, "", "## CPU results (generated by `benchmarks/write_benchmarks_md.py` from the JSON)", ""]
+    train = _load(RESULTS / "train_step_cpu.json")
+    if train:
+        parts += train_step_section(train) + [""]
+    quick = _load(RESULTS / "quickstart_cpu.json")
+    if quick:
+        parts += quickstart_section(quick) + [""]
+    bench = _load(RESULTS / "cpu" / "results.json")
+    if bench:
+        parts += cpu_benchmark_section(bench) + [""]
+        for name in ("success_per_task", "loss_curves"):
+            src = RESULTS / "cpu" / f"{name}.png"
+            if src.exists():
+                shutil.copy(src, REPO / "docs" / "images" / f"cpu_{name}.png")
+    abl = _load(RESULTS / "ablation_cpu.json")
+    if abl:
+        parts += ablation_section(abl) + [""]
+    parts.append(END)
+    text = DOC.read_text()
+    block = "\n".join(parts)
+    if START in text and END in text:
+        text = text[: text.index(START)] + block + text[text.index(END) + len(END) :]
+    else:
+        head, _, rest = text.partition("\n\n")
+        text = head + "\n\n" + block + "\n\n" + rest
+    DOC.write_text(text)
+    print(f"wrote the CPU-results section of {DOC}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
