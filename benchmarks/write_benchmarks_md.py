@@ -63,7 +63,9 @@ def cpu_benchmark_section(res: dict) -> list[str]:
     lines = [
         "### R&D vs ACT vs Diffusion Policy on MetaWorld (CPU scale)",
         "",
-        f"`{b['command'].split('python', 1)[-1].strip() if 'python' in b['command'] else b['command']}`",
+        "`python benchmarks/run_benchmark.py --scale cpu --tasks " + ",".join(b["tasks"]) + " --methods "
+        + ",".join(b["methods"]) + f" --steps {res['settings']['matched']['steps']} --out benchmarks/results/cpu"
+        " [--resume]` (each run's exact lerobot-train / lerobot-eval commands are in its JSON)",
         "",
         f"{'Complete' if b['complete'] else '**Incomplete**: the runs listed as pending were not done in this session'}. "
         f"Written {b['written']}. {res['settings']['matched']['steps']} training steps of batch "

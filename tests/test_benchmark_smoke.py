@@ -141,3 +141,44 @@ def test_smoke_pipeline_with_resume(tmp_path):
     assert "| R&D-AI |" in (tmp_path / "out" / "results.md").read_text()
     r = call("--resume")
     assert r.returncode == 0 and "lerobot-train" not in r.stdout
+
+
+def test_cpu_scale_uses_the_cpu_configs(tmp_path):
+    cmds = []
+    out = subprocess.run(
+        [sys.executable, str(SCRIPT), "--scale", "cpu", "--tasks", "reach-v3", "--methods", "rnd_ai,rnd_a,act,diffusion",
+         "--out", str(tmp_path / "out"), "--work-dir", str(tmp_path / "work"), "--data-dir", str(tmp_path / "data"),
+         "--dry-run"], capture_output=True, text=True, timeout=300, cwd=REPO,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stdout + out.stderr
+    cmds = [line[2:] for line in out.stdout.splitlines() if line.startswith("$ ")]
+    train = {c.split("--job_name=")[1].split("_reach")[0]: c for c in cmds if "lerobot-train" in c}
+    assert "rnd_ai_cpu.json" in train["rnd_ai"] and "--policy.variant" not in train["rnd_ai"]
+    assert "rnd_ai_cpu.json" in train["rnd_a"] and "--policy.variant=A" in train["rnd_a"]
+    assert "act_cpu.json" in train["act"] and "diffusion_cpu.json" in train["diffusion"]
+    assert all("--policy.device=cpu" in c and "--steps=2000" in c for c in train.values())
+    ev = [c for c in cmds if "lerobot-eval" in c and "rnd_ai/" in c]
+    assert len(ev) == 5 and "--seed=1000" in ev[0] and "--seed=1040" in ev[-1]  # 50 episodes in chunks of 10
+
+
+def test_a_committed_run_result_is_skipped_on_a_fresh_work_dir(tmp_path):
+    """Each finished run's JSON under --out/runs survives a fresh clone (the work dir does not): a rerun skips
+    it and reports it."""
+    a = rb.parse_args(["--scale", "smoke", "--methods", "act", "--out", str(tmp_path / "o"),
+                       "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip
+    b = rb.Benchmark(a)
+    st = {"status": "done", "method": "act", "task": "reach-v3", "demos": 3, "seed": 0,
+          "eval_chunks": {"0:2": {"successes": [True, False], "wall_s": 1.0, "dir": "x"}},
+          "train_slices": [{"start_step": 0, "end_step": 2, "wall_s": 3.0, "loop_s": 2.0, "rc": 0, "stopped": None}],
+          "loss_curve": [[1, 0.5], [2, 0.4]]}  # fmt: skip
+    path = b.result_path("act", "reach-v3", 3, 0)
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps(st))
+
+    def no_training(*args, **kwargs):
+        raise AssertionError("a finished run must not be trained again")
+
+    b.train = b.evaluate = no_training
+    b.run_one("act", "reach-v3", 3, 0)
+    runs = b.collect()
+    assert runs[0]["status"] == "done" and runs[0]["successes"] == 1 and runs[0]["loss_curve"] == [[1, 0.5], [2, 0.4]]
