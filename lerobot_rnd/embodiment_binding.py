@@ -73,7 +73,10 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
         raise ValueError("The embodiment has no 'full' gripper mesh.")
     meshes.setdefault("fingers", meshes["full"])
     # Texturing may split faces on the symmetry plane: the buffers hold the textured meshes.
-    meshes = {name: m.with_symmetry_texture(colors=config.texture_colors) for name, m in meshes.items()}
+    meshes = {
+        name: m.with_symmetry_texture(embodiment.symmetry_axis, colors=config.texture_colors)
+        for name, m in meshes.items()
+    }
     config.mesh_shapes = {name: [len(m.vertices), len(m.faces)] for name, m in meshes.items()}
     _validate_cameras(config)
     return meshes
