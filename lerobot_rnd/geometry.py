@@ -79,13 +79,17 @@ def _so3_coeffs(theta2: Tensor, dtype: torch.dtype):
     return A, B, C
 
 
+def _eye_plus(w: Tensor, a: Tensor, b: Tensor) -> Tensor:
+    """I + a hat(w) + b hat(w)^2 (...,3,3) for coefficients a, b (...)."""
+    K = hat(w)
+    eye = torch.eye(3, dtype=w.dtype, device=w.device).expand(K.shape)
+    return eye + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
 def so3_exp(rotvec: Tensor) -> Tensor:
     """Rotation vector (...,3) -> rotation matrix (...,3,3) (Rodrigues, stable near 0)."""
-    theta2 = (rotvec * rotvec).sum(-1)
-    A, B, _ = _so3_coeffs(theta2, rotvec.dtype)
-    K = hat(rotvec)
-    eye = torch.eye(3, dtype=rotvec.dtype, device=rotvec.device).expand(K.shape)
-    return eye + A[..., None, None] * K + B[..., None, None] * (K @ K)
+    A, B, _ = _so3_coeffs((rotvec * rotvec).sum(-1), rotvec.dtype)
+    return _eye_plus(rotvec, A, B)
 
 
 def quat_wxyz_to_matrix(q: Tensor) -> Tensor:
@@ -167,11 +171,8 @@ def so3_log(R: Tensor) -> Tensor:
 
 def so3_left_jacobian(w: Tensor) -> Tensor:
     """Left Jacobian J(w) (...,3,3) of SO(3): se3_exp([v, w]) translation is J(w) @ v."""
-    theta2 = (w * w).sum(-1)
-    _, B, C = _so3_coeffs(theta2, w.dtype)
-    K = hat(w)
-    eye = torch.eye(3, dtype=w.dtype, device=w.device).expand(K.shape)
-    return eye + B[..., None, None] * K + C[..., None, None] * (K @ K)
+    _, B, C = _so3_coeffs((w * w).sum(-1), w.dtype)
+    return _eye_plus(w, B, C)
 
 
 def so3_left_jacobian_inv(w: Tensor) -> Tensor:
@@ -254,38 +255,32 @@ def euler_xyz_to_matrix(e: Tensor) -> Tensor:
 
 #: Rotation formats of state / action vectors and how many numbers each takes ("matrix": row-major 3x3).
 ROTATION_DIMS = {"quat_wxyz": 4, "quat_xyzw": 4, "rotvec": 3, "rot6d": 6, "euler_xyz": 3, "matrix": 9}
+#: format -> (to matrix, from matrix or None)
+_ROTATION_MAPS = {
+    "quat_wxyz": (quat_wxyz_to_matrix, matrix_to_quat_wxyz),
+    "quat_xyzw": (
+        lambda r: quat_wxyz_to_matrix(quat_xyzw_to_wxyz(r)),
+        lambda R: quat_wxyz_to_xyzw(matrix_to_quat_wxyz(R)),
+    ),
+    "rotvec": (so3_exp, so3_log),
+    "rot6d": (rotation_6d_to_matrix, matrix_to_rotation_6d),
+    "euler_xyz": (euler_xyz_to_matrix, None),
+    "matrix": (lambda r: r.reshape(*r.shape[:-1], 3, 3), lambda R: R.reshape(*R.shape[:-2], 9)),
+}
 
 
 def rotation_to_matrix(r: Tensor, fmt: str) -> Tensor:
     """Rotation (..., ROTATION_DIMS[fmt]) in format ``fmt`` -> R (...,3,3). Quaternions are normalised."""
-    if fmt == "quat_wxyz":
-        return quat_wxyz_to_matrix(r)
-    if fmt == "quat_xyzw":
-        return quat_wxyz_to_matrix(quat_xyzw_to_wxyz(r))
-    if fmt == "rotvec":
-        return so3_exp(r)
-    if fmt == "rot6d":
-        return rotation_6d_to_matrix(r)
-    if fmt == "euler_xyz":
-        return euler_xyz_to_matrix(r)
-    if fmt == "matrix":
-        return r.reshape(*r.shape[:-1], 3, 3)
-    raise ValueError(f"unknown rotation format {fmt!r}; formats: {list(ROTATION_DIMS)}")
+    if fmt not in _ROTATION_MAPS:
+        raise ValueError(f"unknown rotation format {fmt!r}; formats: {list(ROTATION_DIMS)}")
+    return _ROTATION_MAPS[fmt][0](r)
 
 
 def matrix_to_rotation(R: Tensor, fmt: str) -> Tensor:
     """R (...,3,3) -> rotation (..., ROTATION_DIMS[fmt]) in format ``fmt`` (quaternions with w >= 0)."""
-    if fmt == "quat_wxyz":
-        return matrix_to_quat_wxyz(R)
-    if fmt == "quat_xyzw":
-        return quat_wxyz_to_xyzw(matrix_to_quat_wxyz(R))
-    if fmt == "rotvec":
-        return so3_log(R)
-    if fmt == "rot6d":
-        return matrix_to_rotation_6d(R)
-    if fmt == "matrix":
-        return R.reshape(*R.shape[:-2], 9)
-    raise ValueError(f"no conversion from a matrix to rotation format {fmt!r}")
+    if _ROTATION_MAPS.get(fmt, (None, None))[1] is None:
+        raise ValueError(f"no conversion from a matrix to rotation format {fmt!r}")
+    return _ROTATION_MAPS[fmt][1](R)
 
 
 def invert_transform(T: Tensor) -> Tensor:
