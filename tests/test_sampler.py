@@ -6,7 +6,7 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from lerobot_rnd.sampler import ddim_step, displacement_target, interpolation_step, register_point_update
-from tests.test_policy import _make_policy
+from tests.helpers import make_policy as _make_policy
 
 
 def _random_pose(rng, trans_scale=0.1):
