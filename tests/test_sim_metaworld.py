@@ -8,7 +8,6 @@ import json
 
 import numpy as np
 import pytest
-import torch
 
 pytest.importorskip("metaworld")
 pytest.importorskip("mujoco")
@@ -149,7 +148,7 @@ def test_lerobot_env_config_and_make_env():
     from lerobot.envs.factory import make_env
     from lerobot.envs.utils import env_to_policy_features, preprocess_observation
 
-    import lerobot_rnd  # noqa: F401  (registers rnd_mw)
+    import lerobot_policy_rnd  # noqa: F401  (the plugin shim LeRobot imports: registers rnd_mw)
 
     cfg = EnvConfig.get_choice_class("rnd_mw")(task="reach-v3", episode_length=5)
     assert "metaworld" not in cfg.type and "libero" not in cfg.type
