@@ -27,7 +27,6 @@ import platform
 import statistics
 import time
 
-import numpy as np
 import torch
 import trimesh
 

@@ -1,16 +1,19 @@
-"""Overlay check: our rendered gripper on MetaWorld's own camera images.
+"""Overlay check: our rendered gripper on the simulator's own camera images (MetaWorld or Panda suite).
 
-Runs the scripted expert in ``gym_rnd_metaworld/<task>`` for a few steps, then for each camera draws
+Runs the scripted expert in ``gym_rnd_metaworld/<task>`` or ``gym_rnd_panda/<task>`` for a few steps, then for
+each camera draws
 
   1. the simulator image,
   2. our gripper render (symmetry texture) pasted at the TRUE EE pose read from ``observation.state``
      through the embodiment (what the policy sees),
-  3. the outline of our render (green) over the simulator image, and MuJoCo's own gripper
-     silhouette (segmentation render of the gripper geoms alone, magenta) with their IoU,
-  4. the gripper rendered at the expert's next poses (every ``--stride`` steps, like an R&D action chunk)
-     over the current image.
+  3. the outline of our render (green) over the simulator image, and MuJoCo's own gripper silhouette
+     (segmentation render of the same gripper geoms alone, magenta) with their IoU,
+  4. the gripper rendered at the EE poses the expert reaches next (every ``--stride`` steps, like an R&D
+     action chunk) over the current image.
 
     MUJOCO_GL=egl python examples/overlay_check.py [--task reach-v3] [--steps 30] [--out outputs/overlay_metaworld.png]
+    MUJOCO_GL=egl python examples/overlay_check.py --suite panda [--task lift-cube] [--steps 9] \\
+        [--out outputs/overlay_panda.png]
 """
 
 from __future__ import annotations
@@ -28,55 +31,82 @@ from PIL import Image, ImageDraw
 
 from lerobot_rnd.geometry import invert_transform
 from lerobot_rnd.rendering import render
-from lerobot_rnd.sim.experts import MetaWorldExpert
-from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
+
+#: per suite: default arguments and the MuJoCo bodies whose subtrees make the "full" / "fingers" meshes
+SUITES = {
+    "metaworld": dict(
+        task="reach-v3", seed=0, steps=30, stride=6, out="outputs/overlay_metaworld.png",
+        roots={"full": ("right_hand",), "fingers": ("rightclaw", "leftclaw")},
+    ),
+    "panda": dict(
+        task="lift-cube", seed=3, steps=9, stride=2, out="outputs/overlay_panda.png",
+        roots={"full": ("base_mount",), "fingers": ("right_follower", "left_follower")},
+    ),
+}  # fmt: skip
 
 
-def mujoco_gripper_mask(env: RnDMetaWorldEnv, camera: str, root_body: str = "right_hand", alone: bool = True):
-    """Pixels where MuJoCo draws a geom of ``root_body``'s subtree (segmentation render); with ``alone``
-    only those geoms are drawn (the arm and the sites would hide parts of the gripper)."""
+def make_env_and_expert(suite: str, task: str, size: int, flip_corner2: bool):
+    if suite == "metaworld":
+        from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
+        from lerobot_rnd.sim.metaworld_experts import MetaWorldExpert
+
+        env = RnDMetaWorldEnv(
+            task, observation_height=size, observation_width=size,
+            flip_cameras=("corner2",) if flip_corner2 else (),
+        )  # fmt: skip
+        return env, MetaWorldExpert(task)
+    from lerobot_rnd.sim.panda_env import RnDPandaEnv
+    from lerobot_rnd.sim.panda_experts import PandaExpert
+
+    env = RnDPandaEnv(task, observation_height=size, observation_width=size, terminate_on_success=False)
+    return env, PandaExpert(task)
+
+
+def subtree_geoms(model, roots) -> list[int]:
+    """Visible geoms (groups 0-2, not transparent) of the ``roots`` bodies and their subtrees."""
+    ids = {model.body(r).id for r in roots}
+    out = []
+    for g in range(model.ngeom):
+        b = int(model.geom_bodyid[g])
+        while b > 0 and b not in ids:
+            b = int(model.body_parentid[b])
+        if b in ids and int(model.geom_group[g]) <= 2 and model.geom_rgba[g][3] > 0:
+            out.append(g)
+    return out
+
+
+def mujoco_gripper_mask(env, camera: str, roots) -> np.ndarray:
+    """Pixels where MuJoCo draws the visual geoms of the ``roots`` subtrees, drawn alone (no occlusion)."""
     m = env.model
-    root = m.body(root_body).id
-    bodies = set()
-    for b in range(m.nbody):
-        a = b
-        while a > 0 and a != root:
-            a = int(m.body_parentid[a])
-        if a == root:
-            bodies.add(b)
-    geoms = [g for g in range(m.ngeom) if int(m.geom_bodyid[g]) in bodies]
+    geoms = subtree_geoms(m, roots)
     r = mujoco.Renderer(m, *env.image_size)
     r.enable_segmentation_rendering()
     opt = mujoco.MjvOption()
     saved = m.geom_group.copy()
-    if alone:
-        m.geom_group[:] = 0
-        m.geom_group[geoms] = 5
-        opt.geomgroup[:] = 0
-        opt.geomgroup[5] = 1
-        opt.sitegroup[:] = 0
+    m.geom_group[:] = 0
+    m.geom_group[geoms] = 5
+    opt.geomgroup[:] = 0
+    opt.geomgroup[5] = 1
+    opt.sitegroup[:] = 0
     try:
-        r.update_scene(env.data, camera=camera, scene_option=opt)
+        r.update_scene(env.data, camera=env.mujoco_camera_name(camera), scene_option=opt)
+        seg = r.render()
     finally:
         m.geom_group[:] = saved
-    seg = r.render()
-    r.close()
+        r.close()
     if camera in env.flip_cameras:
         seg = seg[::-1, ::-1]
     return np.isin(seg[..., 0], geoms) & (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM))
 
 
-def render_gripper(
-    emb, key: str, T_world_ee: torch.Tensor, T_world_ee_now: torch.Tensor, textured: bool = True
-):
+def render_gripper(emb, key: str, T_world_ee: torch.Tensor, T_world_ee_now: torch.Tensor, textured=True):
     """Render the camera's mesh at EE poses (N,4,4); the camera pose is taken at the current EE pose."""
     cam = emb.cameras[key]
-    meshes = emb.mesh_batch(textured=textured)
-    T_world_cam = cam.T_world_cam_at(T_world_ee_now)  # (4,4)
+    T_world_cam = cam.T_world_cam_at(T_world_ee_now)
     T_cam_ee = invert_transform(T_world_cam)[None] @ T_world_ee
     n = T_world_ee.shape[0]
     out = render(
-        meshes,
+        emb.mesh_batch(textured=textured),
         torch.full((n,), emb.mesh_index(key), dtype=torch.long),
         T_cam_ee.float(),
         cam.K_tensor()[None].expand(n, 3, 3),
@@ -94,29 +124,37 @@ def outline(mask: np.ndarray) -> np.ndarray:
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--task", default="reach-v3")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--steps", type=int, default=30, help="expert steps before the snapshot")
+    p.add_argument("--suite", choices=sorted(SUITES), default="metaworld")
+    p.add_argument("--task", default=None, help="default: reach-v3 (metaworld) / lift-cube (panda)")
+    p.add_argument("--seed", type=int, default=None)
+    p.add_argument("--steps", type=int, default=None, help="expert steps before the snapshot")
     p.add_argument("--horizon", type=int, default=4, help="future poses drawn in panel 4")
-    p.add_argument("--stride", type=int, default=6, help="steps between drawn future poses")
-    p.add_argument("--scale", type=int, default=3, help="upscaling of the 128x128 images")
-    p.add_argument("--flip-corner2", action="store_true", help="turn corner2 by 180 degrees (LeRobot style)")
-    p.add_argument("--out", default="outputs/overlay_metaworld.png")
+    p.add_argument("--stride", type=int, default=None, help="steps between drawn future poses")
+    p.add_argument("--size", type=int, default=128, help="image size")
+    p.add_argument("--scale", type=int, default=3, help="upscaling of the images in the PNG")
+    p.add_argument("--flip-corner2", action="store_true", help="metaworld: turn corner2 by 180 degrees (LeRobot)")
+    p.add_argument("--out", default=None)
     a = p.parse_args()
+    suite = SUITES[a.suite]
+    for name in ("task", "seed", "steps", "stride", "out"):
+        if getattr(a, name) is None:
+            setattr(a, name, suite[name])
 
-    env = RnDMetaWorldEnv(a.task, flip_cameras=("corner2",) if a.flip_corner2 else ())
-    expert = MetaWorldExpert(a.task)
+    env, expert = make_env_and_expert(a.suite, a.task, a.size, a.flip_corner2)
     obs, _ = env.reset(seed=a.seed)
     for _ in range(a.steps):
-        obs, *_ = env.step(expert(env.raw_observation))
+        obs, *_ = env.step(expert.act(env))
     emb = env.embodiment()
     state_now = torch.as_tensor(obs["agent_pos"], dtype=torch.float64)
     images = {c: obs["pixels"][c].copy() for c in env.camera_names}
-    gt_masks = {c: mujoco_gripper_mask(env, c) for c in env.camera_names}
+    gt_masks = {
+        c: mujoco_gripper_mask(env, c, suite["roots"][emb.camera_mesh[f"observation.images.{c}"]])
+        for c in env.camera_names
+    }
     future_states = []
     for _ in range(a.horizon):
         for _ in range(a.stride):
-            o, *_ = env.step(expert(env.raw_observation))
+            o, *_ = env.step(expert.act(env))
         future_states.append(torch.as_tensor(o["agent_pos"], dtype=torch.float64))
     src = emb.ee_pose_source
     T_now = src.ee_pose(state_now)
@@ -145,7 +183,8 @@ def main() -> None:
         pil = Image.fromarray((np.clip(row, 0, 1) * 255).astype(np.uint8))
         d = ImageDraw.Draw(pil)
         W = img.shape[1] * S
-        for i, title in enumerate(["simulator", "render @ true EE pose", f"ours green / MuJoCo magenta IoU {iou:.2f}",
+        for i, title in enumerate(["simulator", f"render @ true EE pose ({emb.camera_mesh[key]})",
+                                   f"ours green / MuJoCo magenta IoU {iou:.2f}",
                                    f"next {a.horizon} poses (every {a.stride} steps)"]):  # fmt: skip
             d.text((i * W + 4, 4), f"{cam_name}: {title}" if i == 0 else title, fill=(255, 255, 0))
         rows.append(np.asarray(pil))
@@ -154,6 +193,7 @@ def main() -> None:
     out.parent.mkdir(parents=True, exist_ok=True)
     Image.fromarray(np.concatenate(rows, axis=0)).save(out)
     print(f"wrote {out}")
+    env.close()
 
 
 if __name__ == "__main__":

@@ -40,13 +40,13 @@ from torch import Tensor
 
 from lerobot_rnd.geometry import (
     action_from_pose,
+    check_finite,
+    check_rigid,
     invert_transform,
     make_transform,
-    matrix_to_quat_wxyz,
-    matrix_to_rotation_6d,
+    matrix_to_rotation,
     pose_from_action,
-    quat_wxyz_to_matrix,
-    rotation_6d_to_matrix,
+    rotation_to_matrix,
     so3_exp,
     so3_log,
 )
@@ -75,34 +75,6 @@ def _as_float(x: Tensor, name: str) -> Tensor:
     if not torch.is_floating_point(x):
         x = x.to(torch.get_default_dtype())
     return x
-
-
-def _check_finite(x: Tensor, name: str) -> None:
-    if x.numel() and not bool(torch.isfinite(x).all()):
-        n_bad = int((~torch.isfinite(x)).sum())
-        raise ValueError(f"{name} contains {n_bad} NaN/Inf value(s) (shape {tuple(x.shape)})")
-
-
-def _check_rigid(T: Tensor, name: str, atol: float) -> None:
-    """Raise ValueError unless T (..., 4, 4) is a finite proper rigid transform."""
-    if T.ndim < 2 or tuple(T.shape[-2:]) != (4, 4):
-        raise ValueError(f"{name} must have shape (..., 4, 4), got {tuple(T.shape)}")
-    _check_finite(T, name)
-    if T.numel() == 0:
-        return
-    Td = T.detach().double()
-    bottom = Td[..., 3, :]
-    ref = torch.tensor([0.0, 0.0, 0.0, 1.0], dtype=Td.dtype, device=Td.device)
-    bottom_err = float((bottom - ref).abs().max())
-    R = Td[..., :3, :3]
-    eye = torch.eye(3, dtype=Td.dtype, device=Td.device)
-    orth_err = float((R.transpose(-1, -2) @ R - eye).abs().max())
-    det_min = float(torch.linalg.det(R).min())
-    if bottom_err > atol or orth_err > atol or det_min < 0.0:
-        raise ValueError(
-            f"{name} is not a rigid transform: last row error {bottom_err:.2e}, "
-            f"|R^T R - I| {orth_err:.2e}, min det(R) {det_min:.3f} (tolerance {atol:g})"
-        )
 
 
 def _cumulative_matmul(M: Tensor, reverse_order: bool = False) -> Tensor:
@@ -147,7 +119,7 @@ def _matrix_or_none(m: Any, name: str) -> Tensor | None:
     t = torch.as_tensor(m, dtype=torch.float64)
     if tuple(t.shape) != (4, 4):
         raise ValueError(f"{name} must be a 4x4 matrix, got shape {tuple(t.shape)}")
-    _check_rigid(t, name, 1e-6)
+    check_rigid(t, name, 1e-6)
     return t
 
 
@@ -264,7 +236,7 @@ class ActionAdapter:
                 f"{action.shape[-1]} (shape {tuple(action.shape)})"
             )
         if self.validate:
-            _check_finite(action, "action")
+            check_finite(action, "action")
         return action
 
     def _check_pose(self, T_world_ee: Tensor, like: Tensor) -> Tensor:
@@ -272,7 +244,7 @@ class ActionAdapter:
         if T_world_ee.ndim < 2 or tuple(T_world_ee.shape[-2:]) != (4, 4):
             raise ValueError(f"T_world_ee must have shape (..., 4, 4), got {tuple(T_world_ee.shape)}")
         if self.validate:
-            _check_rigid(T_world_ee, "T_world_ee", self.rigid_atol)
+            check_rigid(T_world_ee, "T_world_ee", self.rigid_atol)
         return T_world_ee
 
     def _check_chunk(self, T_ee_target: Tensor, gripper: Tensor | None) -> tuple[Tensor, Tensor | None]:
@@ -280,11 +252,11 @@ class ActionAdapter:
         if T_ee_target.ndim < 3 or tuple(T_ee_target.shape[-2:]) != (4, 4):
             raise ValueError(f"T_ee_target must have shape (..., T, 4, 4), got {tuple(T_ee_target.shape)}")
         if self.validate:
-            _check_finite(T_ee_target, "T_ee_target")
+            check_finite(T_ee_target, "T_ee_target")
         if gripper is not None:
             gripper = _as_float(gripper, "gripper").to(device=T_ee_target.device, dtype=T_ee_target.dtype)
             if self.validate:
-                _check_finite(gripper, "gripper")
+                check_finite(gripper, "gripper")
         return T_ee_target, gripper
 
     # ---- public API -----------------------------------------------------------------
@@ -499,7 +471,7 @@ class EEDeltaAdapter(ActionAdapter):
 # 3. absolute EE poses
 # --------------------------------------------------------------------------------------
 
-_ROT_DIMS = {"quat_wxyz": 4, "quat_xyzw": 4, "rotvec": 3, "rot6d": 6}
+#: the rotation formats (``geometry.ROTATION_DIMS``) an absolute-pose action may use, with their column names
 _ROT_NAMES = {
     "quat_wxyz": ["qw", "qx", "qy", "qz"],
     "quat_xyzw": ["qx", "qy", "qz", "qw"],
@@ -522,8 +494,8 @@ class AbsoluteEEPoseAdapter(ActionAdapter):
 
     def __init__(self, rotation_format: str = "quat_wxyz", T_world_frame: Any = None, **kwargs: Any):
         super().__init__(**kwargs)
-        if rotation_format not in _ROT_DIMS:
-            raise ValueError(f"rotation_format must be one of {sorted(_ROT_DIMS)}, got {rotation_format!r}")
+        if rotation_format not in _ROT_NAMES:
+            raise ValueError(f"rotation_format must be one of {sorted(_ROT_NAMES)}, got {rotation_format!r}")
         self.rotation_format = rotation_format
         self.T_world_frame = _matrix_or_none(T_world_frame, "T_world_frame")
 
@@ -531,30 +503,12 @@ class AbsoluteEEPoseAdapter(ActionAdapter):
     def motion_names(self) -> list[str]:
         return ["x", "y", "z", *_ROT_NAMES[self.rotation_format]]
 
-    def _rot_to_matrix(self, r: Tensor) -> Tensor:
-        f = self.rotation_format
-        if f in ("quat_wxyz", "quat_xyzw"):
-            q = r if f == "quat_wxyz" else r[..., [3, 0, 1, 2]]
-            n = q.norm(dim=-1, keepdim=True)
-            if self.validate and q.numel() and float(n.min()) < 1e-6:
-                raise ValueError("action contains a zero-norm quaternion")
-            return quat_wxyz_to_matrix(q / n.clamp_min(1e-12))
-        if f == "rotvec":
-            return so3_exp(r)
-        return rotation_6d_to_matrix(r)
-
-    def _matrix_to_rot(self, R: Tensor) -> Tensor:
-        f = self.rotation_format
-        if f in ("quat_wxyz", "quat_xyzw"):
-            q = matrix_to_quat_wxyz(R)
-            q = torch.where(q[..., :1] < 0, -q, q)
-            return q if f == "quat_wxyz" else q[..., [1, 2, 3, 0]]
-        if f == "rotvec":
-            return so3_log(R)
-        return matrix_to_rotation_6d(R)
-
     def _to_rnd_motion(self, motion, T_world_ee, state):
-        T_f_target = make_transform(self._rot_to_matrix(motion[..., 3:]), motion[..., :3])
+        r = motion[..., 3:]
+        if self.validate and self.rotation_format.startswith("quat") and r.numel():
+            if float(r.norm(dim=-1).min()) < 1e-6:
+                raise ValueError("action contains a zero-norm quaternion")
+        T_f_target = make_transform(rotation_to_matrix(r, self.rotation_format), motion[..., :3])
         if self.T_world_frame is not None:
             T_f_target = self.T_world_frame.to(T_f_target) @ T_f_target
         return invert_transform(T_world_ee).unsqueeze(-3) @ T_f_target
@@ -563,7 +517,7 @@ class AbsoluteEEPoseAdapter(ActionAdapter):
         T = T_world_ee.unsqueeze(-3) @ T_ee_target
         if self.T_world_frame is not None:
             T = invert_transform(self.T_world_frame.to(T)) @ T
-        return torch.cat([T[..., :3, 3], self._matrix_to_rot(T[..., :3, :3])], dim=-1)
+        return torch.cat([T[..., :3, 3], matrix_to_rotation(T[..., :3, :3], self.rotation_format)], dim=-1)
 
     def _config(self):
         return {"rotation_format": self.rotation_format, "T_world_frame": _matrix_to_list(self.T_world_frame)}
@@ -688,7 +642,7 @@ class JointPositionAdapter(ActionAdapter):
         if q.shape[-1] != self.n_joints:
             raise ValueError(f"expected {self.n_joints} joint positions from state, got {q.shape[-1]}")
         if self.validate:
-            _check_finite(q, "state")
+            check_finite(q, "state")
         return q
 
     def forward_kinematics(self, q: Tensor) -> Tensor:

@@ -1,6 +1,7 @@
 #!/usr/bin/env python
 """Configuration of the Render and Diffuse (R&D) policy."""
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -12,6 +13,27 @@ from lerobot.optim.schedulers import DiffuserSchedulerConfig
 RND_VARIANTS = ("A", "I", "AI")
 POINT_UPDATES = ("x0", "interpolate", "ddim")
 DENOISE_STEPS = ("ddim", "clean")
+
+#: Fields added after checkpoints were already saved, whose default is not what those checkpoints did, with
+#: the value that reproduces them. A saved config.json without the key gets this value on load
+#: (`migrate_saved_config`, called by `RnDPolicy.from_pretrained`), not the new default.
+LEGACY_FIELD_VALUES: dict[str, Any] = {
+    # Until the method fixes (issue 13) the past/current renders were always pasted over the observed RGB.
+    "history_rgb_overlay": True,
+}
+
+
+def migrate_saved_config(config: "RnDConfig", saved: Mapping[str, Any]) -> list[str]:
+    """Set on `config` the legacy value of every `LEGACY_FIELD_VALUES` field missing from `saved`.
+
+    `saved` is the checkpoint's config.json as a dict. Returns the names of the fields set.
+    """
+    migrated = []
+    for name, value in LEGACY_FIELD_VALUES.items():
+        if name not in saved and getattr(config, name) != value:
+            setattr(config, name, value)
+            migrated.append(name)
+    return migrated
 
 
 @PreTrainedConfig.register_subclass("rnd")
@@ -59,7 +81,7 @@ class RnDConfig(PreTrainedConfig):
             effector), and the mesh rendered in it ("full" or "fingers").
         ee_pose: Resolved description of how to read the end-effector pose and gripper state from
             "observation.state" (filled automatically).
-        action_adapter: Resolved action adapter spec: {"name": ..., **kwargs} (filled automatically from the
+        action_adapter: Resolved action adapter spec: {"type": ..., **kwargs} (filled automatically from the
             embodiment unless given).
         mesh_shapes: Number of vertices and faces of each gripper mesh (filled automatically; the meshes
             themselves are buffers in model.safetensors).

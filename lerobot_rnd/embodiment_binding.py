@@ -2,7 +2,8 @@
 
 The embodiment is resolved once, when a policy is built from scratch, into plain JSON-able fields of the
 config (`cameras`, `ee_pose`, `action_adapter`, `mesh_shapes`) and mesh buffers of the model, so a saved
-checkpoint (config.json + model.safetensors) is self-contained.
+checkpoint (config.json + model.safetensors) is self-contained. The policy's readers of those fields are
+`CameraRig`, `MeshBuffers` and `EEPoseReader` (defined in `ee_pose_source.py`, imported here for the model).
 """
 
 import logging
@@ -12,11 +13,27 @@ import numpy as np
 import torch
 from torch import Tensor, nn
 
+from lerobot_rnd.camera_calibration import CameraCalibration
+from lerobot_rnd.ee_pose_source import EEPoseReader
+from lerobot_rnd.embodiment import (
+    EMBODIMENT_FILE_IN_DATASET,
+    Embodiment,
+    embodiment_preset_names,
+    load_embodiment,
+)
 from lerobot_rnd.rendering import MeshBatch
+
+__all__ = [
+    "CameraRig",
+    "EEPoseReader",
+    "MESH_NAMES",
+    "MeshBuffers",
+    "camera_calibrations",
+    "resolve_embodiment",
+]
 
 logger = logging.getLogger(__name__)
 
-EMBODIMENT_FILE_IN_DATASET = "meta/rnd_embodiment.json"
 MESH_NAMES = ("full", "fingers")
 
 
@@ -28,8 +45,6 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
     `meta/rnd_embodiment.json`. Returns None when no source is available but the config is already resolved
     (a checkpoint being loaded: its meshes come from model.safetensors).
     """
-    from lerobot_rnd.embodiment import Embodiment, load_embodiment
-
     source = config.embodiment
     if source is None and dataset_meta is not None:
         candidate = Path(dataset_meta.root) / EMBODIMENT_FILE_IN_DATASET
@@ -49,7 +64,7 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
             raise ValueError(
                 "R&D needs a camera calibration and gripper meshes but none was found: pass "
                 "--policy.embodiment=<preset name or embodiment JSON> (presets: "
-                f"{', '.join(_preset_names())}), or record the dataset with `lerobot-rnd-record`, which writes "
+                f"{', '.join(embodiment_preset_names())}), or record the dataset with `lerobot-rnd-record`, which writes "
                 f"{EMBODIMENT_FILE_IN_DATASET}. See docs/CALIBRATION.md."
             )
         _validate_cameras(config)
@@ -73,16 +88,13 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
         raise ValueError("The embodiment has no 'full' gripper mesh.")
     meshes.setdefault("fingers", meshes["full"])
     # Texturing may split faces on the symmetry plane: the buffers hold the textured meshes.
-    meshes = {name: m.with_symmetry_texture(colors=config.texture_colors) for name, m in meshes.items()}
+    meshes = {
+        name: m.with_symmetry_texture(embodiment.symmetry_axis, colors=config.texture_colors)
+        for name, m in meshes.items()
+    }
     config.mesh_shapes = {name: [len(m.vertices), len(m.faces)] for name, m in meshes.items()}
     _validate_cameras(config)
     return meshes
-
-
-def _preset_names() -> list[str]:
-    from lerobot_rnd.embodiment import EMBODIMENT_PRESETS
-
-    return sorted(EMBODIMENT_PRESETS)
 
 
 def _validate_cameras(config) -> None:
@@ -111,8 +123,6 @@ def _validate_cameras(config) -> None:
 
 def camera_calibrations(config, camera_keys: list[str]):
     """`CameraCalibration`s of the policy's cameras, rescaled to the network's image size."""
-    from lerobot_rnd.embodiment import CameraCalibration
-
     h, w = config.image_size
     cams = []
     for key in camera_keys:
@@ -165,31 +175,6 @@ class CameraRig(nn.Module):
         carrier = torch.where(self.follow_rotation[:, None, None], T_world_ee, translation_only)
         on_ee = carrier @ self.T_ee_cam
         return torch.where(self.mounted[:, None, None], on_ee, self.T_world_cam_static.expand_as(on_ee))
-
-
-class EEPoseReader:
-    """Reads T_world_ee (..., 4, 4) and the gripper state in [-1 open, +1 closed] from observation.state."""
-
-    def __init__(self, spec: dict, state_dim: int):
-        from lerobot_rnd.embodiment import EEPoseSource
-
-        if not spec:
-            raise ValueError("config.ee_pose is empty: the embodiment must say where the EE pose is in the state.")
-        self.source = EEPoseSource.from_dict(spec)
-        if self.source.min_state_dim() > state_dim:
-            raise ValueError(
-                f"The EE pose source reads observation.state index {self.source.min_state_dim() - 1} but the state "
-                f"has {state_dim} values: the embodiment does not match this dataset."
-            )
-
-    def pose(self, state: Tensor) -> Tensor:
-        return self.source.ee_pose(state.float())
-
-    def gripper(self, state: Tensor) -> Tensor:
-        closure = self.source.gripper(state.float())
-        if closure is None:
-            return state.new_zeros(state.shape[:-1]).float() - 1.0
-        return 2.0 * closure - 1.0
 
 
 class MeshBuffers(nn.Module):

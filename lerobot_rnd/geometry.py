@@ -1,11 +1,12 @@
-"""SO(3) / SE(3) maps, rotation conversions and weighted rigid registration.
+"""SO(3) / SE(3) maps, rotation conversions, rigidity checks and weighted rigid registration.
 
 Pure PyTorch, batched over any leading shape ``...``, CPU and CUDA, float32 and float64.
 Conventions (docs/DESIGN.md): ``T_a_b`` maps points in frame ``b`` into frame ``a``;
 rotation vectors are axis * angle (rad); quaternions are named by their order
 (``quat_wxyz``: scalar first, MuJoCo). SE(3) twists are ``xi = [v, w]`` (translation
-part first). No function here synchronises with the host (no ``.item()``, no boolean
-indexing, no data-dependent shapes), so all of them can be captured in CUDA graphs.
+part first). Except the input checks (``check_finite``, ``check_rigid``), no function here
+synchronises with the host (no ``.item()``, no boolean indexing, no data-dependent shapes),
+so they can be captured in CUDA graphs.
 """
 
 from __future__ import annotations
@@ -25,6 +26,10 @@ __all__ = [
     "quat_wxyz_to_xyzw",
     "rotation_6d_to_matrix",
     "matrix_to_rotation_6d",
+    "euler_xyz_to_matrix",
+    "ROTATION_DIMS",
+    "rotation_to_matrix",
+    "matrix_to_rotation",
     "make_transform",
     "invert_transform",
     "compose_transforms",
@@ -33,6 +38,8 @@ __all__ = [
     "pose_from_action",
     "action_from_pose",
     "weighted_rigid_registration",
+    "check_finite",
+    "check_rigid",
 ]
 
 
@@ -72,13 +79,17 @@ def _so3_coeffs(theta2: Tensor, dtype: torch.dtype):
     return A, B, C
 
 
+def _eye_plus(w: Tensor, a: Tensor, b: Tensor) -> Tensor:
+    """I + a hat(w) + b hat(w)^2 (...,3,3) for coefficients a, b (...)."""
+    K = hat(w)
+    eye = torch.eye(3, dtype=w.dtype, device=w.device).expand(K.shape)
+    return eye + a[..., None, None] * K + b[..., None, None] * (K @ K)
+
+
 def so3_exp(rotvec: Tensor) -> Tensor:
     """Rotation vector (...,3) -> rotation matrix (...,3,3) (Rodrigues, stable near 0)."""
-    theta2 = (rotvec * rotvec).sum(-1)
-    A, B, _ = _so3_coeffs(theta2, rotvec.dtype)
-    K = hat(rotvec)
-    eye = torch.eye(3, dtype=rotvec.dtype, device=rotvec.device).expand(K.shape)
-    return eye + A[..., None, None] * K + B[..., None, None] * (K @ K)
+    A, B, _ = _so3_coeffs((rotvec * rotvec).sum(-1), rotvec.dtype)
+    return _eye_plus(rotvec, A, B)
 
 
 def quat_wxyz_to_matrix(q: Tensor) -> Tensor:
@@ -160,11 +171,8 @@ def so3_log(R: Tensor) -> Tensor:
 
 def so3_left_jacobian(w: Tensor) -> Tensor:
     """Left Jacobian J(w) (...,3,3) of SO(3): se3_exp([v, w]) translation is J(w) @ v."""
-    theta2 = (w * w).sum(-1)
-    _, B, C = _so3_coeffs(theta2, w.dtype)
-    K = hat(w)
-    eye = torch.eye(3, dtype=w.dtype, device=w.device).expand(K.shape)
-    return eye + B[..., None, None] * K + C[..., None, None] * (K @ K)
+    _, B, C = _so3_coeffs((w * w).sum(-1), w.dtype)
+    return _eye_plus(w, B, C)
 
 
 def so3_left_jacobian_inv(w: Tensor) -> Tensor:
@@ -229,6 +237,50 @@ def rotation_6d_to_matrix(d6: Tensor) -> Tensor:
 def matrix_to_rotation_6d(R: Tensor) -> Tensor:
     """R (...,3,3) -> (...,6): first column then second column."""
     return torch.cat([R[..., :, 0], R[..., :, 1]], -1)
+
+
+def euler_xyz_to_matrix(e: Tensor) -> Tensor:
+    """Extrinsic x-y-z Euler angles (...,3) (scipy ``"xyz"``) -> R (...,3,3) = Rz(e2) @ Ry(e1) @ Rx(e0)."""
+    c, s = torch.cos(e), torch.sin(e)
+    one, zero = torch.ones_like(e[..., 0]), torch.zeros_like(e[..., 0])
+
+    def m(rows):
+        return torch.stack([torch.stack(r, -1) for r in rows], -2)
+
+    Rx = m([[one, zero, zero], [zero, c[..., 0], -s[..., 0]], [zero, s[..., 0], c[..., 0]]])
+    Ry = m([[c[..., 1], zero, s[..., 1]], [zero, one, zero], [-s[..., 1], zero, c[..., 1]]])
+    Rz = m([[c[..., 2], -s[..., 2], zero], [s[..., 2], c[..., 2], zero], [zero, zero, one]])
+    return Rz @ Ry @ Rx
+
+
+#: Rotation formats of state / action vectors and how many numbers each takes ("matrix": row-major 3x3).
+ROTATION_DIMS = {"quat_wxyz": 4, "quat_xyzw": 4, "rotvec": 3, "rot6d": 6, "euler_xyz": 3, "matrix": 9}
+#: format -> (to matrix, from matrix or None)
+_ROTATION_MAPS = {
+    "quat_wxyz": (quat_wxyz_to_matrix, matrix_to_quat_wxyz),
+    "quat_xyzw": (
+        lambda r: quat_wxyz_to_matrix(quat_xyzw_to_wxyz(r)),
+        lambda R: quat_wxyz_to_xyzw(matrix_to_quat_wxyz(R)),
+    ),
+    "rotvec": (so3_exp, so3_log),
+    "rot6d": (rotation_6d_to_matrix, matrix_to_rotation_6d),
+    "euler_xyz": (euler_xyz_to_matrix, None),
+    "matrix": (lambda r: r.reshape(*r.shape[:-1], 3, 3), lambda R: R.reshape(*R.shape[:-2], 9)),
+}
+
+
+def rotation_to_matrix(r: Tensor, fmt: str) -> Tensor:
+    """Rotation (..., ROTATION_DIMS[fmt]) in format ``fmt`` -> R (...,3,3). Quaternions are normalised."""
+    if fmt not in _ROTATION_MAPS:
+        raise ValueError(f"unknown rotation format {fmt!r}; formats: {list(ROTATION_DIMS)}")
+    return _ROTATION_MAPS[fmt][0](r)
+
+
+def matrix_to_rotation(R: Tensor, fmt: str) -> Tensor:
+    """R (...,3,3) -> rotation (..., ROTATION_DIMS[fmt]) in format ``fmt`` (quaternions with w >= 0)."""
+    if _ROTATION_MAPS.get(fmt, (None, None))[1] is None:
+        raise ValueError(f"no conversion from a matrix to rotation format {fmt!r}")
+    return _ROTATION_MAPS[fmt][1](R)
 
 
 def invert_transform(T: Tensor) -> Tensor:
@@ -381,3 +433,46 @@ def weighted_rigid_registration(
     eye = torch.eye(4, dtype=dtype, device=src.device).expand(T.shape)
     T = torch.where(valid[..., None, None] & torch.isfinite(T).all(-1).all(-1)[..., None, None], T, eye)
     return T, valid
+
+
+# ----------------------------------------------------------------------------------------
+# input checks (validation only: these synchronise with the host)
+# ----------------------------------------------------------------------------------------
+
+
+def check_finite(x: Tensor, name: str) -> None:
+    """Raise ValueError naming ``name`` if ``x`` holds NaN or Inf."""
+    if x.numel() and not bool(torch.isfinite(x).all()):
+        n_bad = int((~torch.isfinite(x)).sum())
+        raise ValueError(f"{name} contains {n_bad} NaN/Inf value(s) (shape {tuple(x.shape)})")
+
+
+def check_rigid(T, name: str, atol: float = 1e-4) -> None:
+    """Raise ValueError naming ``name`` unless ``T`` (..., 4, 4) (tensor or array) is a finite proper rigid
+    transform: last row [0, 0, 0, 1] and an orthonormal rotation block with det +1, within ``atol``."""
+    T = torch.as_tensor(T)
+    if T.ndim < 2 or tuple(T.shape[-2:]) != (4, 4):
+        raise ValueError(f"{name} must have shape (..., 4, 4), got {tuple(T.shape)}")
+    check_finite(T, name)
+    if T.numel() == 0:
+        return
+    Td = T.detach().double()
+    ref = torch.tensor([0.0, 0.0, 0.0, 1.0], dtype=Td.dtype, device=Td.device)
+    bottom_err = float((Td[..., 3, :] - ref).abs().max())
+    if bottom_err > atol:
+        raise ValueError(
+            f"{name} is not a rigid transform: its last row must be [0, 0, 0, 1] "
+            f"(max error {bottom_err:.2e}, tolerance {atol:g})"
+        )
+    R = Td[..., :3, :3]
+    eye = torch.eye(3, dtype=Td.dtype, device=Td.device)
+    orth_err = float((R.transpose(-1, -2) @ R - eye).abs().max())
+    if orth_err > atol:
+        raise ValueError(
+            f"{name} is not a rigid transform: non-orthonormal rotation block (max |R^T R - I| = "
+            f"{orth_err:.2e}, tolerance {atol:g}); pass a rigid transform (no scale or shear)"
+        )
+    if float(torch.linalg.det(R).min()) < 0.0:
+        raise ValueError(
+            f"{name} is not a rigid transform: it has a reflection (det R < 0); pass a proper rotation"
+        )

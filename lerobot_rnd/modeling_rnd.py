@@ -22,7 +22,7 @@ from lerobot.policies.utils import populate_queues
 from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 
 from lerobot_rnd.action_adapters import ActionAdapter
-from lerobot_rnd.configuration_rnd import RnDConfig
+from lerobot_rnd.configuration_rnd import RnDConfig, migrate_saved_config
 from lerobot_rnd.embodiment_binding import (
     CameraRig,
     EEPoseReader,
@@ -71,6 +71,27 @@ class RnDPolicy(PreTrainedPolicy):
             self.model.fit_statistics(dataset_meta)
         self._queues = None
         self.reset()
+
+    @classmethod
+    def from_pretrained(cls, pretrained_name_or_path, *, config: RnDConfig | None = None, **kwargs):
+        """LeRobot's loader, plus: a checkpoint saved before a field existed loads with the value it was
+        trained with (`LEGACY_FIELD_VALUES`), and a missing or damaged checkpoint names its folder."""
+        hub_kwargs = {k: kwargs[k] for k in _HUB_KWARGS if k in kwargs}
+        if config is None:
+            from lerobot.configs.policies import PreTrainedConfig
+
+            config = PreTrainedConfig.from_pretrained(pretrained_name_or_path, **hub_kwargs)
+        saved = _read_saved_config(pretrained_name_or_path, hub_kwargs)
+        if saved is not None:
+            migrated = migrate_saved_config(config, saved)
+            if migrated:
+                logging.info(
+                    "R&D checkpoint %s predates %s: loaded with %s",
+                    pretrained_name_or_path,
+                    ", ".join(migrated),
+                    ", ".join(f"{k}={getattr(config, k)!r}" for k in migrated),
+                )
+        return super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
 
     def get_optim_params(self) -> dict:
         return self.model.network.parameters()
@@ -147,6 +168,28 @@ class RnDPolicy(PreTrainedPolicy):
         from lerobot_rnd.model_card import make_rnd_model_card
 
         return make_rnd_model_card(self.config, dataset_repo_id, license, tags)
+
+
+_HUB_KWARGS = ("force_download", "resume_download", "proxies", "token", "cache_dir", "local_files_only", "revision")
+
+
+def _read_saved_config(pretrained_name_or_path, hub_kwargs: dict) -> dict | None:
+    """The checkpoint's config.json as a dict (local folder or the Hub cache), or None where unreadable."""
+    import json
+    from pathlib import Path
+
+    path = Path(str(pretrained_name_or_path)) / "config.json"
+    if not path.is_file():
+        try:
+            from huggingface_hub import hf_hub_download
+
+            path = Path(hf_hub_download(str(pretrained_name_or_path), "config.json", **hub_kwargs))
+        except Exception:  # noqa: BLE001 - the loader itself reports an unreachable checkpoint
+            return None
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
 
 
 def resize_images(images: Tensor, size: tuple[int, int], key: str = "image") -> Tensor:

@@ -17,29 +17,3 @@ def toy_dataset_root(tmp_path_factory):
 
     return record_toy_dataset(tmp_path_factory.mktemp("toy") / "toy_reach")
 
-
-TINY_POLICY_KWARGS = dict(
-    device="cpu",
-    dim_model=64,
-    n_layers=2,
-    n_heads=4,
-    patch_size=16,
-    image_size=(64, 64),
-    chunk_size=4,
-    n_action_steps=2,
-    num_train_timesteps=20,
-    stats_num_samples=32,
-)
-
-
-def tiny_policy_flags() -> list[str]:
-    return [
-        "--policy.dim_model=64",
-        "--policy.n_layers=2",
-        "--policy.n_heads=4",
-        "--policy.image_size=[64,64]",
-        "--policy.chunk_size=4",
-        "--policy.n_action_steps=2",
-        "--policy.num_train_timesteps=20",
-        "--policy.stats_num_samples=32",
-    ]

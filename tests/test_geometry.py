@@ -14,10 +14,14 @@ from scipy.linalg import expm
 from scipy.spatial.transform import Rotation
 
 from lerobot_rnd.geometry import (
+    ROTATION_DIMS,
     action_from_pose,
+    check_rigid,
+    euler_xyz_to_matrix,
     invert_transform,
     make_transform,
     matrix_to_quat_wxyz,
+    matrix_to_rotation,
     matrix_to_rotation_6d,
     pose_from_action,
     quat_wxyz_to_matrix,
@@ -25,6 +29,7 @@ from lerobot_rnd.geometry import (
     quat_xyzw_to_wxyz,
     relative_transform,
     rotation_6d_to_matrix,
+    rotation_to_matrix,
     se3_exp,
     se3_log,
     so3_exp,
@@ -106,6 +111,53 @@ def test_quaternion_orders_vs_scipy(dtype):
         Rp = torch.tensor(Rotation.from_rotvec(axis * math.pi).as_matrix(), dtype=dtype)
         qp = matrix_to_quat_wxyz(Rp)
         np.testing.assert_allclose(quat_wxyz_to_matrix(qp).double().numpy(), Rp.double().numpy(), atol=TOL[dtype])
+
+
+@pytest.mark.parametrize("fmt", list(ROTATION_DIMS))
+def test_rotation_formats_vs_scipy(fmt):
+    rot = Rotation.random(20, random_state=4)
+    R_ref = rot.as_matrix()
+    q_xyzw = rot.as_quat()
+    r = {
+        "quat_wxyz": np.concatenate([q_xyzw[:, 3:], q_xyzw[:, :3]], -1) * 1.7,  # any norm
+        "quat_xyzw": q_xyzw * 0.6,
+        "rotvec": rot.as_rotvec(),
+        "rot6d": np.concatenate([R_ref[:, :, 0], R_ref[:, :, 1]], -1),
+        "euler_xyz": rot.as_euler("xyz"),
+        "matrix": R_ref.reshape(20, 9),
+    }[fmt]
+    assert r.shape[-1] == ROTATION_DIMS[fmt]
+    R = rotation_to_matrix(torch.tensor(r), fmt)
+    np.testing.assert_allclose(R.numpy(), R_ref, atol=1e-10)
+    if fmt == "euler_xyz":
+        np.testing.assert_allclose(euler_xyz_to_matrix(torch.tensor(r)).numpy(), R_ref, atol=1e-10)
+        with pytest.raises(ValueError, match="no conversion"):
+            matrix_to_rotation(R, fmt)
+        return
+    back = matrix_to_rotation(torch.tensor(R_ref), fmt)
+    np.testing.assert_allclose(rotation_to_matrix(back, fmt).numpy(), R_ref, atol=1e-10)
+    if fmt.startswith("quat"):
+        w = back[:, 0] if fmt == "quat_wxyz" else back[:, 3]
+        assert (w >= 0).all() and torch.allclose(back.norm(dim=-1), torch.ones(20, dtype=back.dtype))
+    with pytest.raises(ValueError, match="unknown rotation format"):
+        rotation_to_matrix(torch.tensor(r), "quaternion")
+
+
+@pytest.mark.parametrize(
+    "T, match",
+    [
+        (np.diag([2.0, 1, 1, 1]), "non-orthonormal"),
+        (np.diag([-1.0, 1, 1, 1]), "reflection"),
+        (np.array([[1.0, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0.1, 1]]), r"last row"),
+        (np.full((4, 4), np.nan), "NaN"),
+        (np.eye(3), r"\(\.\.\., 4, 4\)"),
+    ],
+)
+def test_check_rigid_names_the_problem(T, match):
+    with pytest.raises(ValueError, match=match):
+        check_rigid(T, "T_test")
+    check_rigid(make_transform(torch.eye(3), torch.ones(3)).expand(5, 4, 4), "ok")
+    check_rigid(np.eye(4) + 1e-6, "almost", atol=1e-5)
 
 
 @pytest.mark.parametrize("dtype", DTYPES)

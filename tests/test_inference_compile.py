@@ -3,12 +3,13 @@
 import pytest
 import torch
 
-from tests.test_policy import _make_policy
+from tests.helpers import make_policy
+
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="compiled inference is for CUDA (tracing on CPU takes >10 min)")
 def test_compiled_sampler_matches_eager(toy_dataset_root):
     device = "cuda"
-    policy, _ = _make_policy(toy_dataset_root)
+    policy, _ = make_policy(toy_dataset_root)
     policy.to(device).eval()
     b = 2
     images = torch.rand(b, 2, 2, 3, 64, 64, device=device)
@@ -24,7 +25,7 @@ def test_compiled_sampler_matches_eager(toy_dataset_root):
 
 def test_static_rendering_in_the_model_matches_dynamic(toy_dataset_root):
     """Without compiling: the static rasteriser path used by the compiled sampler draws what the exact one does."""
-    policy, _ = _make_policy(toy_dataset_root)
+    policy, _ = make_policy(toy_dataset_root)
     model = policy.model
     b = 2
     T = torch.eye(4).repeat(b, 6, 1, 1)

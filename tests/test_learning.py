@@ -2,7 +2,7 @@
 
 import torch
 
-from tests.test_policy import _make_policy
+from tests.helpers import make_policy as _make_policy
 from tests.toy_data import record_toy_dataset
 
 MAX_STEPS = 1500

@@ -2,7 +2,7 @@
 
 import torch
 
-from tests.test_policy import _make_policy, _training_batch
+from tests.helpers import make_policy as _make_policy, training_batch as _training_batch
 
 
 def test_ema_update_follows_the_warmed_up_decay_and_is_used_at_evaluation(toy_dataset_root, tmp_path):

@@ -28,6 +28,25 @@ def test_distribution_is_discovered_the_way_lerobot_does_it():
     assert out.returncode == 0 and "ok" in out.stdout, out.stderr[-3000:]
 
 
+def test_plugin_discovery_registers_the_environments_and_embodiment_presets():
+    """LeRobot's discovery (the `lerobot_policy_rnd` shim) registers --env.type=rnd_mw / rnd_panda and the
+    simulator presets, with no extra flags; importing lerobot_rnd alone does not."""
+    code = (
+        "import sys\n"
+        "from lerobot.envs.configs import EnvConfig\n"
+        "import lerobot_rnd\n"
+        "from lerobot_rnd.embodiment import EMBODIMENT_PRESETS\n"
+        "assert 'rnd_mw' not in EnvConfig.get_known_choices() and not EMBODIMENT_PRESETS\n"
+        "from lerobot.utils.import_utils import register_third_party_plugins\n"
+        "register_third_party_plugins()\n"
+        "assert {'rnd_mw', 'rnd_panda'} <= set(EnvConfig.get_known_choices()), EnvConfig.get_known_choices()\n"
+        "assert {'metaworld_sawyer', 'metaworld_sawyer_lerobot', 'panda_robotiq'} <= set(EMBODIMENT_PRESETS)\n"
+        "print('ok')\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0 and "ok" in out.stdout, out.stderr[-3000:]
+
+
 def test_config_round_trips_through_json(tmp_path):
     from lerobot.configs.policies import PreTrainedConfig
 

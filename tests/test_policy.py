@@ -9,40 +9,12 @@ from pathlib import Path
 import pytest
 import torch
 
-from tests.conftest import TINY_POLICY_KWARGS, tiny_policy_flags
-
-REPO_ROOT = Path(__file__).resolve().parents[1]
-
-
-def _make_policy(root, **overrides):
-    from lerobot.configs.types import FeatureType
-    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
-    from lerobot.datasets.utils import dataset_to_policy_features
-
-    from lerobot_rnd.configuration_rnd import RnDConfig
-    from lerobot_rnd.modeling_rnd import RnDPolicy
-
-    meta = LeRobotDatasetMetadata("local/toy_reach", root=root)
-    features = dataset_to_policy_features(meta.features)
-    cfg = RnDConfig(**{**TINY_POLICY_KWARGS, **overrides})
-    cfg.output_features = {k: f for k, f in features.items() if f.type is FeatureType.ACTION}
-    cfg.input_features = {k: f for k, f in features.items() if k not in cfg.output_features}
-    return RnDPolicy(cfg, dataset_meta=meta), meta
-
-
-def _training_batch(root, cfg, n=4):
-    from lerobot.datasets.factory import resolve_delta_timestamps
-    from lerobot.datasets.lerobot_dataset import LeRobotDataset, LeRobotDatasetMetadata
-
-    meta = LeRobotDatasetMetadata("local/toy_reach", root=root)
-    ds = LeRobotDataset("local/toy_reach", root=root, delta_timestamps=resolve_delta_timestamps(cfg, meta))
-    items = [ds[i] for i in range(0, len(ds), max(1, len(ds) // n))][:n]
-    return {k: torch.stack([it[k] for it in items]) for k in items[0] if isinstance(items[0][k], torch.Tensor)}
+from tests.helpers import make_policy, tiny_policy_flags, training_batch
 
 
 def test_training_batch_shapes_and_loss(toy_dataset_root):
-    policy, _ = _make_policy(toy_dataset_root)
-    batch = _training_batch(toy_dataset_root, policy.config)
+    policy, _ = make_policy(toy_dataset_root)
+    batch = training_batch(toy_dataset_root, policy.config)
     assert batch["observation.images.front"].shape == (4, 2, 3, 64, 64)
     assert batch["action"].shape == (4, 4, 4)
     policy.train()
@@ -56,7 +28,7 @@ def test_training_batch_shapes_and_loss(toy_dataset_root):
 
 @pytest.mark.parametrize("variant", ["A", "I", "AI"])
 def test_select_action_and_chunk_shapes(toy_dataset_root, variant):
-    policy, _ = _make_policy(toy_dataset_root, variant=variant)
+    policy, _ = make_policy(toy_dataset_root, variant=variant)
     policy.eval()
     obs = {
         "observation.images.front": torch.rand(3, 3, 64, 64),
@@ -75,7 +47,7 @@ def test_select_action_and_chunk_shapes(toy_dataset_root, variant):
 def test_save_pretrained_round_trip_is_bit_identical(toy_dataset_root, tmp_path):
     from lerobot_rnd.modeling_rnd import RnDPolicy
 
-    policy, _ = _make_policy(toy_dataset_root)
+    policy, _ = make_policy(toy_dataset_root)
     policy.save_pretrained(tmp_path)
     config = json.loads((tmp_path / "config.json").read_text())
     assert set(config["cameras"]) == {"observation.images.front", "observation.images.wrist"}
@@ -197,7 +169,7 @@ def test_push_to_hub_runs_the_real_code_path_against_a_fake_hub(toy_dataset_root
             return FakeCommit(f"file://{hub / repo_id}")
 
     monkeypatch.setattr(pretrained_mod, "HfApi", FakeHfApi)
-    policy, _ = _make_policy(toy_dataset_root)
+    policy, _ = make_policy(toy_dataset_root)
     policy.config.repo_id = "someone/rnd_toy"
     train_cfg = TrainPipelineConfig(dataset=DatasetConfig(repo_id="local/toy_reach"), policy=policy.config)
     monkeypatch.setattr(sys, "argv", ["lerobot-train", "--policy.type=rnd", "--dataset.repo_id=local/toy_reach"])
@@ -215,7 +187,7 @@ def test_push_to_hub_runs_the_real_code_path_against_a_fake_hub(toy_dataset_root
 def test_processors_are_saved_and_reloaded(toy_dataset_root, tmp_path):
     from lerobot.policies.factory import make_pre_post_processors
 
-    policy, meta = _make_policy(toy_dataset_root)
+    policy, meta = make_policy(toy_dataset_root)
     pre, post = make_pre_post_processors(policy.config, dataset_stats=meta.stats)
     pre.save_pretrained(tmp_path)
     post.save_pretrained(tmp_path)
@@ -231,7 +203,7 @@ def test_processors_are_saved_and_reloaded(toy_dataset_root, tmp_path):
 
 
 def test_bad_inputs_get_errors_that_name_the_fix(toy_dataset_root):
-    policy, _ = _make_policy(toy_dataset_root)
+    policy, _ = make_policy(toy_dataset_root)
     obs = {"observation.images.front": torch.rand(1, 3, 64, 64),
            "observation.images.side": torch.rand(1, 3, 64, 64),
            "observation.state": torch.tensor([[0.0, 0.0, 0.2, 1.0]])}
@@ -264,21 +236,12 @@ def test_bad_inputs_get_errors_that_name_the_fix(toy_dataset_root):
 
 def _make_policy_with_features(root, extra_image=None, front_shape=None, action_dim=None, no_embodiment=False):
     from lerobot.configs.types import FeatureType, PolicyFeature
-    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
-    from lerobot.datasets.utils import dataset_to_policy_features
 
-    from lerobot_rnd.configuration_rnd import RnDConfig
-    from lerobot_rnd.modeling_rnd import RnDPolicy
-
-    meta = LeRobotDatasetMetadata("local/toy_reach", root=root)
-    features = dataset_to_policy_features(meta.features)
+    features = {}
     if extra_image:
         features[extra_image] = PolicyFeature(type=FeatureType.VISUAL, shape=(3, 64, 64))
     if front_shape:
         features["observation.images.front"] = PolicyFeature(type=FeatureType.VISUAL, shape=front_shape)
     if action_dim:
         features["action"] = PolicyFeature(type=FeatureType.ACTION, shape=(action_dim,))
-    cfg = RnDConfig(**TINY_POLICY_KWARGS)
-    cfg.output_features = {k: f for k, f in features.items() if f.type is FeatureType.ACTION}
-    cfg.input_features = {k: f for k, f in features.items() if k not in cfg.output_features}
-    return RnDPolicy(cfg, dataset_meta=None if no_embodiment else meta)
+    return make_policy(root, features=features, with_dataset_meta=not no_embodiment)[0]

@@ -6,7 +6,7 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from lerobot_rnd.sampler import ddim_step, displacement_target, interpolation_step, register_point_update
-from tests.test_policy import _make_policy
+from tests.helpers import make_policy as _make_policy
 
 
 def _random_pose(rng, trans_scale=0.1):
@@ -258,7 +258,7 @@ def _make_policy_cameras(root, cameras, **overrides):
 
     from lerobot_rnd.configuration_rnd import RnDConfig
     from lerobot_rnd.modeling_rnd import RnDPolicy
-    from tests.conftest import TINY_POLICY_KWARGS
+    from tests.helpers import TINY_POLICY_KWARGS
 
     meta = LeRobotDatasetMetadata("local/toy_reach", root=root)
     features = dataset_to_policy_features(meta.features)

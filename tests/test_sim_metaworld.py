@@ -5,102 +5,20 @@ geoms) versus our calibration's projection / our renderer's mask of the extracte
 """
 
 import json
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np
 import pytest
-import torch
 
 pytest.importorskip("metaworld")
-mujoco = pytest.importorskip("mujoco")
+pytest.importorskip("mujoco")
 
+from tests.helpers import gl_available, gripper_mask_iou, marker_errors, subtree_geoms  # noqa: E402
 
-def _gl_available() -> bool:
-    try:
-        m = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
-        r = mujoco.Renderer(m, 8, 8)
-        r.render()
-        r.close()
-        return True
-    except Exception:  # noqa: BLE001
-        return False
+pytestmark = pytest.mark.skipif(not gl_available(), reason="no headless OpenGL (MUJOCO_GL=egl/osmesa)")
 
-
-pytestmark = pytest.mark.skipif(not _gl_available(), reason="no headless OpenGL (MUJOCO_GL=egl/osmesa)")
-
-from lerobot_rnd.embodiment import camera_from_mujoco
-from lerobot_rnd.sim.experts import MetaWorldExpert
-from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
-
-SITE = int(mujoco.mjtObj.mjOBJ_SITE)
-GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
-
-
-def segmentation(env, camera, size, markers=(), radii=(), markers_only=False, only_geoms=None):
-    """MuJoCo segmentation image (objid, objtype) with marker spheres as objid 1000+i (type site).
-
-    ``markers_only``: the model's geoms are dropped (nothing occludes the markers); ``only_geoms``:
-    only these geoms are drawn (no occlusion by the arm or the sites)."""
-    r = mujoco.Renderer(env.model, size[0], size[1])
-    r.enable_segmentation_rendering()
-    opt = mujoco.MjvOption()
-    saved = env.model.geom_group.copy()
-    if only_geoms is not None:
-        env.model.geom_group[:] = 0
-        env.model.geom_group[only_geoms] = 5
-        opt.geomgroup[:] = 0
-        opt.geomgroup[5] = 1
-        opt.sitegroup[:] = 0
-    try:
-        r.update_scene(env.data, camera=camera, scene_option=opt)
-    finally:
-        env.model.geom_group[:] = saved
-    if markers_only:
-        r.scene.ngeom = 0
-    for i, (p, rad) in enumerate(zip(markers, radii, strict=True)):
-        g = r.scene.geoms[r.scene.ngeom]
-        mujoco.mjv_initGeom(
-            g, mujoco.mjtGeom.mjGEOM_SPHERE, np.array([rad, 0, 0]), np.asarray(p, float), np.eye(3).ravel(),
-            np.ones(4, np.float32),
-        )  # fmt: skip
-        g.objtype, g.objid, g.segid = SITE, 1000 + i, r.scene.ngeom
-        r.scene.ngeom += 1
-    seg = r.render().copy()
-    r.close()
-    if camera in env.flip_cameras:
-        seg = seg[::-1, ::-1]
-    return seg
-
-
-def marker_errors(env, cam, size, seed=0):
-    """Pixel error between the centroids of marker spheres as MuJoCo draws them and our projection
-    of their centres. The markers sit on a 4x4 grid of pixels at random depths (0.3-1.5 m)."""
-    rng = np.random.default_rng(seed)
-    T_we = torch.tensor(env.hand_pose())
-    H, W = size
-    gu, gv = np.meshgrid(np.linspace(0.15, 0.85, 4) * (W - 1), np.linspace(0.15, 0.85, 4) * (H - 1))
-    uv1 = (
-        np.stack([gu.ravel(), gv.ravel(), np.ones(16)], 1) + np.c_[rng.uniform(-2, 2, (16, 2)), np.zeros(16)]
-    )
-    depth = rng.uniform(0.3, 1.5, 16)
-    p_cam = (np.linalg.inv(cam.K) @ uv1.T).T * depth[:, None]
-    T_wc = cam.T_world_cam_at(T_we).numpy()
-    pts = p_cam @ T_wc[:3, :3].T + T_wc[:3, 3]
-    n = len(pts)
-    uv, z = cam.project(torch.tensor(pts), T_we)
-    f = cam.K[1, 1]
-    radii = 5.0 * z.numpy() / f  # about 5 px on screen
-    seg = segmentation(env, cam.name, size, pts, radii, markers_only=True)
-    errs = []
-    for i in range(n):
-        m = (seg[..., 0] == 1000 + i) & (seg[..., 1] == SITE)
-        if m.sum() < 0.9 * np.pi * 25:  # off screen or behind another marker
-            continue
-        vv, uu = np.nonzero(m)
-        errs.append([uu.mean() - uv[i, 0].item(), vv.mean() - uv[i, 1].item()])
-    return np.asarray(errs)
+from lerobot_rnd.camera_calibration import camera_from_mujoco  # noqa: E402
+from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv  # noqa: E402
+from lerobot_rnd.sim.metaworld_experts import MetaWorldExpert  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -116,7 +34,7 @@ def env_mid_motion():
 
 
 def test_hand_is_tilted(env_mid_motion):
-    R = env_mid_motion.hand_pose()[:3, :3]
+    R = env_mid_motion.ee_pose()[:3, :3]
     R0 = np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]], float)  # mocap orientation
     angle = np.degrees(np.arccos(np.clip((np.trace(R0.T @ R) - 1) / 2, -1, 1)))
     assert angle > 1.0  # the EE-mounted camera check below is meaningful only if the hand is not at R0
@@ -147,34 +65,8 @@ def test_non_square_intrinsics(env_mid_motion):
 
 
 def gripper_iou(env, key, size=None):
-    from lerobot_rnd.geometry import invert_transform
-    from lerobot_rnd.rendering import render
-
-    emb = env.embodiment()
-    cam = emb.cameras[key] if size is None else emb.cameras[key].resized(*size)
-    m = env.model
-    root = m.body("right_hand").id
-    geoms = []
-    for g in range(m.ngeom):
-        b = int(m.geom_bodyid[g])
-        while b > 0 and b != root:
-            b = int(m.body_parentid[b])
-        if b == root:
-            geoms.append(g)
-    seg = segmentation(env, cam.name, cam.image_size, only_geoms=geoms)  # no occlusion by the arm
-    gt = np.isin(seg[..., 0], geoms) & (seg[..., 1] == GEOM)
-    state = torch.as_tensor(env.state(), dtype=torch.float64)
-    T_we = emb.ee_pose_source.ee_pose(state)  # the EE pose as the policy reads it from observation.state
-    T_ce = invert_transform(cam.T_world_cam_at(T_we)) @ T_we
-    out = render(
-        emb.mesh_batch(),
-        torch.tensor([emb.mesh_index(key)]),
-        T_ce[None].float(),
-        cam.K_tensor()[None],
-        cam.image_size,
-    )
-    pm = out.mask[0].numpy()
-    return (gt & pm).sum() / (gt | pm).sum(), int(gt.sum())
+    geoms = subtree_geoms(env.model, ["right_hand"], max_group=None)
+    return gripper_mask_iou(env, env.embodiment(), key, geoms, size)
 
 
 def test_gripper_mask_iou(env_mid_motion):
@@ -256,7 +148,7 @@ def test_lerobot_env_config_and_make_env():
     from lerobot.envs.factory import make_env
     from lerobot.envs.utils import env_to_policy_features, preprocess_observation
 
-    import lerobot_rnd  # noqa: F401  (registers rnd_mw)
+    import lerobot_policy_rnd  # noqa: F401  (the plugin shim LeRobot imports: registers rnd_mw)
 
     cfg = EnvConfig.get_choice_class("rnd_mw")(task="reach-v3", episode_length=5)
     assert "metaworld" not in cfg.type and "libero" not in cfg.type

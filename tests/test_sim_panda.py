@@ -8,44 +8,21 @@ the EE poses actually reached versus the adapter's prediction from the recorded 
 
 import json
 import math
-import os
-
-os.environ.setdefault("MUJOCO_GL", "egl")
 
 import numpy as np
 import pytest
 import torch
 
 pytest.importorskip("gym_hil", reason="gym-hil is not installed (pip install --no-deps gym-hil==0.1.14)")
-mujoco = pytest.importorskip("mujoco")
+pytest.importorskip("mujoco")
 
+from tests.helpers import gl_available, gripper_mask_iou, marker_errors, subtree_geoms  # noqa: E402
 
-def _gl_available() -> bool:
-    try:
-        m = mujoco.MjModel.from_xml_string("<mujoco><worldbody><geom size='1'/></worldbody></mujoco>")
-        r = mujoco.Renderer(m, 8, 8)
-        r.render()
-        r.close()
-        return True
-    except Exception:  # noqa: BLE001
-        return False
+pytestmark = pytest.mark.skipif(not gl_available(), reason="no headless OpenGL (MUJOCO_GL=egl/osmesa)")
 
-
-pytestmark = pytest.mark.skipif(not _gl_available(), reason="no headless OpenGL (MUJOCO_GL=egl/osmesa)")
-
-from lerobot_rnd.sim.panda_env import (  # noqa: E402
-    FINGER_BODIES,
-    GRIPPER_ROOT_BODY,
-    HOME_QUAT,
-    MUJOCO_CAMERAS,
-    PANDA_TASKS,
-    START_POS,
-    RnDPandaEnv,
-)
+from lerobot_rnd.sim.panda_env import PANDA_TASKS, RnDPandaEnv  # noqa: E402
 from lerobot_rnd.sim.panda_experts import PandaExpert  # noqa: E402
-
-SITE = int(mujoco.mjtObj.mjOBJ_SITE)
-GEOM = int(mujoco.mjtObj.mjOBJ_GEOM)
+from lerobot_rnd.sim.panda_scene import FINGER_BODIES, GRIPPER_ROOT_BODY, HOME_QUAT, START_POS  # noqa: E402
 
 
 def small_env(task, **kw):
@@ -172,66 +149,6 @@ def test_expert_succeeds(task):
 # --------------------------------------------------------------------------------------------------
 # calibration vs MuJoCo's rendering
 # --------------------------------------------------------------------------------------------------
-def segmentation(env, camera, size, markers=(), radii=(), markers_only=False, only_geoms=None):
-    """MuJoCo segmentation image (objid, objtype) with marker spheres as objid 1000+i (type site)."""
-    r = mujoco.Renderer(env.model, size[0], size[1])
-    r.enable_segmentation_rendering()
-    opt = mujoco.MjvOption()
-    saved = env.model.geom_group.copy()
-    if only_geoms is not None:
-        env.model.geom_group[:] = 0
-        env.model.geom_group[only_geoms] = 5
-        opt.geomgroup[:] = 0
-        opt.geomgroup[5] = 1
-        opt.sitegroup[:] = 0
-    try:
-        r.update_scene(env.data, camera=MUJOCO_CAMERAS[camera], scene_option=opt)
-    finally:
-        env.model.geom_group[:] = saved
-    if markers_only:
-        r.scene.ngeom = 0
-    for i, (p, rad) in enumerate(zip(markers, radii, strict=True)):
-        g = r.scene.geoms[r.scene.ngeom]
-        mujoco.mjv_initGeom(
-            g, mujoco.mjtGeom.mjGEOM_SPHERE, np.array([rad, 0, 0]), np.asarray(p, float), np.eye(3).ravel(),
-            np.ones(4, np.float32),
-        )  # fmt: skip
-        g.objtype, g.objid, g.segid = SITE, 1000 + i, r.scene.ngeom
-        r.scene.ngeom += 1
-    seg = r.render().copy()
-    r.close()
-    return seg
-
-
-def marker_errors(env, cam, size, seed=0):
-    """Pixel error between the centroids of marker spheres as MuJoCo draws them and our projection of
-    their centres: 16 markers on a grid of pixels at random depths, plus one at the EE site."""
-    rng = np.random.default_rng(seed)
-    T_we = torch.tensor(env.ee_pose())
-    H, W = size
-    gu, gv = np.meshgrid(np.linspace(0.15, 0.85, 4) * (W - 1), np.linspace(0.15, 0.85, 4) * (H - 1))
-    jitter = np.c_[rng.uniform(-2, 2, (16, 2)), np.zeros(16)]
-    uv1 = np.stack([gu.ravel(), gv.ravel(), np.ones(16)], 1) + jitter
-    depth = rng.uniform(0.15, 1.2, 16)
-    p_cam = (np.linalg.inv(cam.K) @ uv1.T).T * depth[:, None]
-    T_wc = cam.T_world_cam_at(T_we).numpy()
-    pts = np.concatenate([p_cam @ T_wc[:3, :3].T + T_wc[:3, 3], env.ee_pose()[None, :3, 3]])
-    uv, z = cam.project(torch.tensor(pts), T_we)
-    radii = 5.0 * z.numpy() / cam.K[1, 1]  # about 5 px on screen
-    seg = segmentation(env, cam.name, size, pts, radii, markers_only=True)
-    errs = []
-    for i in range(len(pts)):
-        others = np.delete(uv.numpy(), i, axis=0)
-        if np.linalg.norm(others - uv[i].numpy(), axis=1).min() < 12:  # overlaps another marker
-            continue
-        m = (seg[..., 0] == 1000 + i) & (seg[..., 1] == SITE)
-        if m.sum() < 0.9 * np.pi * 25:  # off screen or behind another marker
-            continue
-        vv, uu = np.nonzero(m)
-        errs.append([uu.mean() - uv[i, 0].item(), vv.mean() - uv[i, 1].item()])
-    return np.asarray(errs)
-
-
 @pytest.fixture(scope="module")
 def env_tilted():
     """lift-cube with the EE moved, turned and tilted (so the wrist camera's rigid mount is tested)."""
@@ -258,34 +175,21 @@ def test_calibration_matches_mujoco_projection(env_tilted, camera):
     emb = env.embodiment(max_faces=1500)
     cam = emb.cameras[f"observation.images.{camera}"]
     assert cam.is_static == (camera == "front")
-    errs = marker_errors(env, cam, cam.image_size)
+    markers = dict(depth_range=(0.15, 1.2), extra_points=env.ee_pose()[:3, 3])  # closer, plus the EE site
+    errs = marker_errors(env, cam, cam.image_size, **markers)
     assert len(errs) >= 14
     assert np.abs(errs.mean(0)).max() < 0.05, errs.mean(0)
     assert np.abs(errs).max() < 0.35, np.abs(errs).max()
     big = cam.resized(384, 384)
-    errs = marker_errors(env, big, (384, 384), seed=1)
+    errs = marker_errors(env, big, (384, 384), seed=1, **markers)
     assert len(errs) >= 14
     assert np.abs(errs.mean(0)).max() < 0.05 and np.abs(errs).max() < 0.35, errs
-
-
-def _subtree_geoms(model, roots):
-    ids = {model.body(r).id for r in roots}
-    out = []
-    for g in range(model.ngeom):
-        b = int(model.geom_bodyid[g])
-        while b > 0 and b not in ids:
-            b = int(model.body_parentid[b])
-        if b in ids and int(model.geom_group[g]) <= 2:
-            out.append(g)
-    return out
 
 
 def test_gripper_mask_iou_and_preset(env_tilted):
     """Our renderer's mask of the extracted, simplified mesh at the pose read from observation.state vs
     MuJoCo's segmentation of the same gripper geoms (drawn alone); the preset matches the env's."""
     from lerobot_rnd.embodiment import load_embodiment
-    from lerobot_rnd.geometry import invert_transform
-    from lerobot_rnd.rendering import render
 
     env = env_tilted
     emb = env.embodiment()
@@ -297,16 +201,8 @@ def test_gripper_mask_iou_and_preset(env_tilted):
     for cam_name, roots, mesh in cases:
         key = f"observation.images.{cam_name}"
         assert emb.camera_mesh[key] == mesh
-        cam = emb.cameras[key]
-        geoms = _subtree_geoms(env.model, roots)
-        seg = segmentation(env, cam_name, cam.image_size, only_geoms=geoms)
-        gt = np.isin(seg[..., 0], geoms) & (seg[..., 1] == GEOM)
-        T_ce = invert_transform(cam.T_world_cam_at(T_we)) @ T_we
-        out = render(emb.mesh_batch(), torch.tensor([emb.mesh_index(key)]), T_ce[None].float(),
-                     cam.K_tensor()[None], cam.image_size)  # fmt: skip
-        pm = out.mask[0].numpy()
-        iou = (gt & pm).sum() / (gt | pm).sum()
-        assert gt.sum() > 150 and iou >= 0.9, (cam_name, iou, gt.sum())
+        iou, n = gripper_mask_iou(env, emb, key, subtree_geoms(env.model, roots))
+        assert n > 150 and iou >= 0.9, (cam_name, iou, n)
     preset = load_embodiment("panda_robotiq")
     assert preset.name == "panda_robotiq" and preset.action_adapter == emb.action_adapter
     assert preset.ee_pose_source.to_dict() == emb.ee_pose_source.to_dict()
@@ -434,21 +330,21 @@ def test_clear_error_without_gym_hil(monkeypatch):
     then fails with the install command."""
     import importlib.util
 
-    from lerobot_rnd.sim import panda_env
+    from lerobot_rnd.sim import panda_scene
 
     real = importlib.util.find_spec
     monkeypatch.setattr(
-        panda_env.importlib.util, "find_spec", lambda name, *a: None if name == "gym_hil" else real(name, *a)
+        panda_scene.importlib.util, "find_spec", lambda name, *a: None if name == "gym_hil" else real(name, *a)
     )
     with pytest.raises(ImportError, match="pip install --no-deps gym-hil==0.1.14"):
-        panda_env.gym_hil_assets_dir()
+        panda_scene.gym_hil_assets_dir()
 
 
 def test_gym_hil_envs_step_on_installed_mujoco():
     """gym-hil 0.1.14's own env steps after ``patch_gym_hil_for_mujoco`` (MuJoCo 4 removed MjData.qM)."""
     from gym_hil.envs import PandaPickCubeGymEnv
 
-    from lerobot_rnd.sim.panda_env import patch_gym_hil_for_mujoco
+    from lerobot_rnd.sim.opspace import patch_gym_hil_for_mujoco
 
     patch_gym_hil_for_mujoco()
     env = PandaPickCubeGymEnv()

@@ -60,7 +60,7 @@ def _reference_action_range(root, horizon):
 
 
 def test_action_statistics_cover_every_window_with_a_margin(toy_dataset_root):
-    from tests.test_policy import _make_policy
+    from tests.helpers import make_policy as _make_policy
 
     policy, _ = _make_policy(toy_dataset_root, action_stats_margin=0.1)
     stats = policy.model.action_stats
@@ -76,7 +76,7 @@ def test_action_statistics_cover_every_window_with_a_margin(toy_dataset_root):
 
 
 def test_gripper_class_weight_is_the_open_closed_ratio(toy_dataset_root):
-    from tests.test_policy import _make_policy
+    from tests.helpers import make_policy as _make_policy
 
     policy, _ = _make_policy(toy_dataset_root)
     # Toy episodes close the gripper for the second half of every episode: every window's targets count.
@@ -99,7 +99,7 @@ def test_non_finite_actions_are_refused_with_the_episode_and_frame(tmp_path):
     import pandas as pd
     from pathlib import Path
 
-    from tests.test_policy import _make_policy
+    from tests.helpers import make_policy as _make_policy
     from tests.toy_data import record_toy_dataset
 
     root = record_toy_dataset(tmp_path / "toy_nan", n_episodes=2, episode_len=6)

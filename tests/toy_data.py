@@ -12,7 +12,13 @@ import numpy as np
 import trimesh
 from scipy.spatial.transform import Rotation
 
-from lerobot_rnd.embodiment import CameraCalibration, EEPoseSource, Embodiment, GripperMesh
+from lerobot_rnd.embodiment import (
+    EMBODIMENT_FILE_IN_DATASET,
+    CameraCalibration,
+    EEPoseSource,
+    Embodiment,
+    GripperMesh,
+)
 
 IMAGE_SIZE = (64, 64)
 FPS = 10
@@ -98,7 +104,7 @@ def _draw(embodiment: Embodiment, ee_pos: np.ndarray, target: np.ndarray) -> dic
 
 def record_toy_dataset(root: Path, n_episodes: int = 3, episode_len: int = 16, seed: int = 0,
                        repo_id: str = "local/toy_reach"):
-    """Write a LeRobot v3 dataset with PNG images plus meta/rnd_embodiment.json; returns its root."""
+    """Write a LeRobot v3 dataset with PNG images plus its embodiment JSON; returns its root."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     embodiment = toy_embodiment()
@@ -128,5 +134,5 @@ def record_toy_dataset(root: Path, n_episodes: int = 3, episode_len: int = 16, s
             ee = ee + delta * 0.01
         ds.save_episode()
     ds.finalize()
-    embodiment.save_json(Path(root) / "meta" / "rnd_embodiment.json")
+    embodiment.save_json(Path(root) / EMBODIMENT_FILE_IN_DATASET)
     return Path(root)

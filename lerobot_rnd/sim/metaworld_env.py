@@ -1,7 +1,8 @@
 """MetaWorld (V3, Sawyer) as a gymnasium env for LeRobot with two fast 128x128 cameras and exact placement.
 
 ``gym.make("gym_rnd_metaworld/reach-v3")`` (registered by ``import lerobot_rnd.sim``), or
-``lerobot-eval --env.type=rnd_mw --env.task=reach-v3``.
+``lerobot-eval --env.type=rnd_mw --env.task=reach-v3``. The embodiment presets ``metaworld_sawyer`` (this env)
+and ``metaworld_sawyer_lerobot`` (LeRobot's ``--env.type=metaworld``) are defined and registered here.
 
 Observation (LeRobot's ``preprocess_observation`` maps it to ``observation.images.<cam>`` and
 ``observation.state``)::
@@ -10,7 +11,7 @@ Observation (LeRobot's ``preprocess_observation`` maps it to ``observation.image
      "agent_pos": float32 (8,) = [hand x, y, z (m, world), gripper opening, hand quat w, x, y, z]}
 
 - hand xyz: position of MuJoCo body "hand" (= MetaWorld ``obs[:3]``, LeRobot's ``agent_pos[:3]``); the
-  R&D EE frame is this body's frame (``lerobot_rnd.embodiment.SAWYER_EE_BODY``).
+  R&D EE frame is this body's frame (:data:`SAWYER_EE_BODY`).
 - gripper opening: finger distance / 0.1 m clipped to [0, 1] (MetaWorld ``obs[3]``; 1 = open, about
   0.3 when closed on nothing).
 - hand quaternion (wxyz, w >= 0): MetaWorld commands a fixed orientation (mocap quat [1, 0, 1, 0]) but
@@ -30,20 +31,33 @@ from __future__ import annotations
 
 import json
 import logging
-from collections.abc import Sequence
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cache
 from importlib.util import find_spec
 from pathlib import Path
 from typing import Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from lerobot.configs.types import FeatureType, PolicyFeature
 from lerobot.envs.configs import EnvConfig
-from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 
-from lerobot_rnd.embodiment import LEROBOT_CORNER2_POS, SAWYER_EE_BODY
+from lerobot_rnd.arrays import mujoco_pose
+from lerobot_rnd.embodiment import (
+    CameraCalibration,
+    EEPoseSource,
+    Embodiment,
+    GripperMesh,
+    camera_from_mujoco,
+    register_embodiment_preset,
+)
+from lerobot_rnd.sim.mujoco_env import (
+    RnDMuJoCoEnv,
+    RnDSimEnvConfig,
+    default_headless_gl,
+    register_gym_envs,
+)
 
 METAWORLD_V3_TASKS = (
     "assembly-v3", "basketball-v3", "bin-picking-v3", "box-close-v3", "button-press-topdown-v3",
@@ -66,6 +80,14 @@ STATE_LAYOUTS = {"pos_grip_quat": STATE_NAMES, "pos_grip_quat_mocap": STATE_NAME
 ACTION_NAMES = ["dx", "dy", "dz", "gripper"]
 METAWORLD_FPS = 80  # frame_skip 5 x timestep 2.5 ms
 MAX_PATH_LENGTH = 500  # MetaWorld refuses to step further
+
+#: MetaWorld Sawyer EE frame: body "hand" (its position is MetaWorld's ``obs[:3]``, i.e. LeRobot's
+#: ``agent_pos[:3]``; fingers point along its +x axis, the fingers open along its y axis).
+SAWYER_EE_BODY = "hand"
+#: corner2 position used by LeRobot's MetaWorld env (closer than MetaWorld's own, arXiv:2206.14244).
+LEROBOT_CORNER2_POS = (0.75, 0.075, 0.7)
+#: Nominal hand orientation (MetaWorld's fixed mocap quaternion [1, 0, 1, 0] normalised, wxyz).
+SAWYER_HAND_QUAT_WXYZ = (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -100,15 +122,19 @@ def patch_metaworld_for_mujoco() -> None:
     _PATCHED = True
 
 
-def task_description(task: str) -> str:
+@cache
+def lerobot_metaworld_config() -> dict:
+    """LeRobot's ``envs/metaworld_config.json`` (task descriptions, scripted policy names), or {}."""
     spec = find_spec("lerobot")
     if spec is not None and spec.submodule_search_locations:
         cfg = Path(next(iter(spec.submodule_search_locations))) / "envs" / "metaworld_config.json"
         if cfg.exists():
-            desc = json.loads(cfg.read_text()).get("TASK_DESCRIPTIONS", {}).get(task)
-            if desc:
-                return desc
-    return task
+            return json.loads(cfg.read_text())
+    return {}
+
+
+def task_description(task: str) -> str:
+    return lerobot_metaworld_config().get("TASK_DESCRIPTIONS", {}).get(task) or task
 
 
 class PlacementRejected(ValueError):
@@ -145,24 +171,19 @@ def make_metaworld_task_env(task: str):
 # --------------------------------------------------------------------------------------------------
 # The env
 # --------------------------------------------------------------------------------------------------
-class RnDMetaWorldEnv(gym.Env):
+class RnDMetaWorldEnv(RnDMuJoCoEnv):
     """MetaWorld task with multi-camera pixels + EE state observations (see the module docstring).
 
     Args:
         task: MetaWorld V3 task name, e.g. "reach-v3".
         camera_names: MuJoCo cameras to observe ("corner2", "behindGripper", "corner", "corner3",
             "topview", "gripperPOV").
-        observation_height, observation_width: image size.
         flip_cameras: cameras whose images are turned by 180 degrees (as LeRobot does for corner2).
         corner2_pos: world position of corner2 (default: LeRobot's); None keeps MetaWorld's.
         episode_length: steps before truncation (<= 500).
-        placement: "random" (seeded, from the task's range) or "fixed" (cycle through ``placements``).
-        placements: list of MetaWorld rand_vecs for "fixed".
-        terminate_on_success: end the episode at the first success.
-        fast_render: no multisampling, shadows or reflections (~7 ms per 128x128 camera on CPU).
-        render_mode: "rgb_array"; ``render()`` returns the last observation's images side by side
-            (no extra rendering), or a ``visualization_height`` x ``visualization_width`` render of
-            ``render_camera`` when those are set.
+        state_layout: "pos_grip_quat" (8-D, see the module docstring) or "pos_grip_quat_mocap" (+ mocap xyz).
+        **settings: the other settings of :class:`~lerobot_rnd.sim.mujoco_env.RnDMuJoCoEnv` (image size,
+            placements, rendering; ``fast_render``: ~7 ms per 128x128 camera on CPU).
     """
 
     metadata: ClassVar[dict] = {"render_modes": ["rgb_array"], "render_fps": METAWORLD_FPS}
@@ -171,65 +192,25 @@ class RnDMetaWorldEnv(gym.Env):
         self,
         task: str = "reach-v3",
         camera_names: Sequence[str] = DEFAULT_CAMERAS,
-        observation_height: int = 128,
-        observation_width: int = 128,
         flip_cameras: Sequence[str] = (),
         corner2_pos: Sequence[float] | None = LEROBOT_CORNER2_POS,
         episode_length: int = 300,
-        placement: str = "random",
-        placements: Sequence[Sequence[float]] | None = None,
-        terminate_on_success: bool = True,
-        fast_render: bool = True,
-        render_mode: str | None = "rgb_array",
-        render_camera: str | None = None,
-        visualization_height: int | None = None,
-        visualization_width: int | None = None,
-        obs_type: str = "pixels_agent_pos",
         state_layout: str = "pos_grip_quat",
+        **settings: Any,
     ):
-        super().__init__()
+        super().__init__(
+            camera_names=camera_names, flip_cameras=flip_cameras, episode_length=episode_length,
+            max_episode_length=MAX_PATH_LENGTH, **settings,
+        )  # fmt: skip
         import mujoco
 
         self.task = _check_task(task)
         self.task_description = task_description(self.task)
-        if obs_type != "pixels_agent_pos":
-            raise ValueError(f"obs_type must be 'pixels_agent_pos', got {obs_type!r}")
-        self.obs_type = obs_type
         if state_layout not in STATE_LAYOUTS:
             raise ValueError(f"state_layout must be one of {sorted(STATE_LAYOUTS)}, got {state_layout!r}")
         self.state_layout = state_layout
         self.state_names = list(STATE_LAYOUTS[state_layout])
-        self.camera_names = tuple(camera_names)
-        if not self.camera_names:
-            raise ValueError("camera_names is empty")
-        self.image_size = (int(observation_height), int(observation_width))
-        self.flip_cameras = tuple(flip_cameras)
-        unknown_flip = set(self.flip_cameras) - set(self.camera_names)
-        if unknown_flip:
-            raise ValueError(
-                f"flip_cameras {sorted(unknown_flip)} are not in camera_names {self.camera_names}"
-            )
         self.corner2_pos = None if corner2_pos is None else tuple(float(v) for v in corner2_pos)
-        if not 0 < int(episode_length) <= MAX_PATH_LENGTH:
-            raise ValueError(f"episode_length must be in 1..{MAX_PATH_LENGTH}, got {episode_length}")
-        self._max_episode_steps = int(episode_length)
-        if placement not in ("random", "fixed"):
-            raise ValueError(f"placement must be 'random' or 'fixed', got {placement!r}")
-        self.placement_mode = placement
-        self.placements = (
-            None if placements is None else [np.asarray(p, dtype=np.float64) for p in placements]
-        )
-        if placement == "fixed" and not self.placements:
-            raise ValueError("placement='fixed' needs a non-empty list of placements")
-        self.terminate_on_success = bool(terminate_on_success)
-        if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode must be 'rgb_array' or None, got {render_mode!r}")
-        self.render_mode = render_mode
-        self.render_camera = render_camera or self.camera_names[0]
-        self.visualization_size = (
-            None if visualization_height is None or visualization_width is None
-            else (int(visualization_height), int(visualization_width))
-        )  # fmt: skip
 
         self._env = make_metaworld_task_env(self.task)
         self.model, self.data = self._env.model, self._env.data
@@ -241,19 +222,13 @@ class RnDMetaWorldEnv(gym.Env):
             self.model.cam_pos[mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_CAMERA, "corner2")] = (
                 self.corner2_pos
             )
-        self.fast_render = bool(fast_render)
         if self.fast_render:
             self.model.vis.quality.offsamples = 0
         self._hand_id = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, SAWYER_EE_BODY)
         self._rclaw = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "rightclaw")
         self._lclaw = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "leftclaw")
-        self._renderers: dict[tuple[int, int], Any] = {}
-        self._fixed_cursor = 0
         self._rand_calls = 0
-        self._steps = 0
         self._raw_obs: np.ndarray | None = None
-        self._last_pixels: dict[str, np.ndarray] | None = None
-        self._placement: np.ndarray | None = None
 
         orig = self._env._get_state_rand_vec
 
@@ -266,34 +241,13 @@ class RnDMetaWorldEnv(gym.Env):
             return orig()
 
         self._env._get_state_rand_vec = guarded_rand_vec
-
-        H, W = self.image_size
-        self.observation_space = spaces.Dict(
-            {
-                "pixels": spaces.Dict(
-                    {c: spaces.Box(0, 255, shape=(H, W, 3), dtype=np.uint8) for c in self.camera_names}
-                ),
-                "agent_pos": spaces.Box(-np.inf, np.inf, shape=(len(self.state_names),), dtype=np.float32),
-            }
-        )
-        self.action_space = spaces.Box(-1.0, 1.0, shape=(4,), dtype=np.float32)
+        self._setup_spaces(state_dim=len(self.state_names), action_dim=4)
 
     # ------------------------------------------------------------------ placements
     @property
     def placement_space(self) -> spaces.Box:
         """The task's placement (rand_vec) range."""
         return self._env._random_reset_space
-
-    @property
-    def placement(self) -> np.ndarray | None:
-        """The current episode's placement (MetaWorld rand_vec)."""
-        return None if self._placement is None else self._placement.copy()
-
-    def sample_placement(self, rng: np.random.Generator | None = None) -> np.ndarray:
-        """A uniform placement from the task's range (not checked; see :meth:`is_valid_placement`)."""
-        rng = self.np_random if rng is None else rng
-        sp = self.placement_space
-        return rng.uniform(sp.low, sp.high).astype(np.float64)
 
     def is_valid_placement(self, placement: Sequence[float]) -> bool:
         """Whether MetaWorld's reset accepts the placement (object and goal far enough apart).
@@ -302,11 +256,7 @@ class RnDMetaWorldEnv(gym.Env):
         env must be reset again before stepping.
         """
         vec = np.asarray(placement, dtype=np.float64)
-        sp = self.placement_space
-        if vec.shape != sp.low.shape:
-            raise ValueError(
-                f"{self.task}: placement must have {sp.low.shape[0]} numbers, got shape {vec.shape}"
-            )
+        self._check_placement_shape(vec)
         inner = self._env
         if getattr(inner, "init_tcp", None) is None:  # normally set by _reset_hand
             inner.init_tcp = inner.tcp_center
@@ -323,12 +273,15 @@ class RnDMetaWorldEnv(gym.Env):
             self._raw_obs = None  # force a real reset before stepping
         return True
 
-    def _reset_inner(self, vec: np.ndarray) -> np.ndarray:
+    def _check_placement_shape(self, vec: np.ndarray) -> None:
         sp = self.placement_space
         if vec.shape != sp.low.shape:
             raise ValueError(
                 f"{self.task}: placement must have {sp.low.shape[0]} numbers, got shape {vec.shape}"
             )
+
+    def _reset_inner(self, vec: np.ndarray) -> np.ndarray:
+        self._check_placement_shape(vec)
         self._env._freeze_rand_vec = True
         self._env._last_rand_vec = vec.copy()
         self._rand_calls = 0
@@ -349,8 +302,7 @@ class RnDMetaWorldEnv(gym.Env):
                     f"{self.task}: MetaWorld rejects placement {vec.tolist()} (object and goal too close)"
                 ) from e
         elif self.placement_mode == "fixed":
-            vec = self.placements[self._fixed_cursor % len(self.placements)]
-            self._fixed_cursor += 1
+            vec = self._next_fixed_placement()
             raw = self._reset_inner(vec)
         else:
             for _ in range(1000):
@@ -378,28 +330,13 @@ class RnDMetaWorldEnv(gym.Env):
         self._raw_obs = raw
         self._steps += 1
         is_success = bool(info.get("success", 0.0))
-        terminated = is_success and self.terminate_on_success
-        truncated = (not terminated) and self._steps >= self._max_episode_steps
+        terminated, truncated = self._episode_end(is_success)
         obs = self._observation()
         out_info = {"is_success": is_success, "task": self.task}
         return obs, float(reward), terminated, truncated, out_info
 
-    def render(self):
-        if self.render_mode is None:
-            return None
-        if self.visualization_size is None:
-            if self._last_pixels is None:
-                return np.zeros((*self.image_size, 3), dtype=np.uint8)
-            return np.concatenate([self._last_pixels[c] for c in self.camera_names], axis=1)
-        return self.render_camera_image(self.render_camera, self.visualization_size)
-
     def close(self):
-        for r in self._renderers.values():
-            try:
-                r.close()
-            except Exception as e:  # noqa: BLE001
-                logger.debug("closing a MuJoCo renderer failed: %s", e)
-        self._renderers.clear()
+        super().close()
         self._env.close()
 
     # ------------------------------------------------------------------ observations
@@ -425,151 +362,249 @@ class RnDMetaWorldEnv(gym.Env):
             parts.append(self.mocap_pos())
         return np.concatenate(parts).astype(np.float32)
 
-    def hand_pose(self) -> np.ndarray:
+    def ee_pose(self) -> np.ndarray:
         """World-from-EE (body "hand") 4x4 pose."""
-        T = np.eye(4)
-        T[:3, :3] = np.asarray(self.data.xmat[self._hand_id]).reshape(3, 3)
-        T[:3, 3] = self.data.xpos[self._hand_id]
-        return T
+        return mujoco_pose(self.data.xmat[self._hand_id], self.data.xpos[self._hand_id])
 
     def mocap_pos(self) -> np.ndarray:
         """The mocap target position (what the xyz action moves)."""
         return np.asarray(self.data.mocap_pos[0], dtype=np.float64).copy()
 
-    def _renderer(self, size: tuple[int, int]):
-        r = self._renderers.get(size)
-        if r is None:
-            import mujoco
-
-            r = mujoco.Renderer(self.model, height=size[0], width=size[1])
-            if self.fast_render:
-                r.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = 0
-                r.scene.flags[mujoco.mjtRndFlag.mjRND_REFLECTION] = 0
-            self._renderers[size] = r
-        return r
-
-    def render_camera_image(self, camera: str, size: tuple[int, int] | None = None) -> np.ndarray:
-        """uint8 (H, W, 3) image of a MuJoCo camera (flipped if the camera is in ``flip_cameras``)."""
-        r = self._renderer(tuple(size) if size is not None else self.image_size)
-        r.update_scene(self.data, camera=camera)
-        img = r.render()
-        if camera in self.flip_cameras:
-            img = np.ascontiguousarray(img[::-1, ::-1])
-        return img
-
-    def _observation(self) -> dict[str, Any]:
-        pixels = {c: self.render_camera_image(c) for c in self.camera_names}
-        self._last_pixels = pixels
-        return {"pixels": pixels, "agent_pos": self.state()}
-
     # ------------------------------------------------------------------ calibration
-    def embodiment(self, max_faces: int = 1500):
+    def embodiment(self, max_faces: int = 1500) -> Embodiment:
         """The :class:`~lerobot_rnd.embodiment.Embodiment` matching this env's cameras and state."""
-        import mujoco
-
-        from lerobot_rnd.embodiment import (
-            Embodiment,
-            metaworld_action_adapter,
-            metaworld_ee_pose_source,
-            sawyer_cameras_from_mujoco,
-            sawyer_gripper_meshes,
-        )
-
-        mujoco.mj_forward(self.model, self.data)
-        cams = sawyer_cameras_from_mujoco(
-            self.model, self.data, self.camera_names, self.image_size, flipped=self.flip_cameras
-        )
-        meshes = sawyer_gripper_meshes(self.model, max_faces=max_faces)
-        return Embodiment(
-            cameras=cams,
-            meshes=meshes,
-            camera_mesh={k: ("fingers" if c.name == "gripperPOV" else "full") for k, c in cams.items()},
-            ee_pose_source=metaworld_ee_pose_source("pos_grip_quat"),
-            action_adapter=metaworld_action_adapter(),
-            name="metaworld_sawyer",
+        return metaworld_sawyer_embodiment(
+            self.camera_names, self.image_size, flipped=self.flip_cameras, max_faces=max_faces,
+            model=self.model, data=self.data,
             notes=(
                 f"{GYM_NAMESPACE}/{self.task}: cameras {list(self.camera_names)} at "
                 f"{self.image_size[0]}x{self.image_size[1]}, flipped {list(self.flip_cameras)}, "
                 f"corner2_pos {None if self.corner2_pos is None else list(self.corner2_pos)}; "
                 f"state {self.state_names}; EE frame = body 'hand'"
             ),
+        )  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------------------
+# Embodiment presets
+# --------------------------------------------------------------------------------------------------
+def metaworld_xml_path(task: str = "reach-v3") -> str:
+    """Path of a MetaWorld task's MJCF (all Sawyer tasks share the robot and cameras)."""
+    import importlib.util
+
+    spec = importlib.util.find_spec("metaworld")
+    if spec is None or not spec.submodule_search_locations:
+        raise ImportError("metaworld is not installed (pip install 'lerobot[metaworld]')")
+    root = Path(next(iter(spec.submodule_search_locations))) / "assets" / "sawyer_xyz"
+    name = "sawyer_" + task.replace("-", "_") + ".xml"
+    path = root / name
+    if not path.exists():
+        path = root / "sawyer_reach_v3.xml"
+    return str(path)
+
+
+def sawyer_gripper_meshes(model=None, max_faces: int = 1500, texture: bool = False) -> dict[str, GripperMesh]:
+    """MetaWorld Sawyer gripper meshes in the "hand" frame at the open gripper (qpos0).
+
+    "full": body "right_hand" subtree (gripper base mesh, black flange cylinder, rail, finger pads);
+    "fingers": the finger bodies "rightclaw" / "leftclaw" (their visible pads). Symmetry texture on
+    the hand's y axis (the fingers' opening direction) with ``texture=True`` (the policy textures the
+    meshes itself, so the stored meshes keep MuJoCo's colours).
+    """
+    import mujoco
+
+    if model is None:
+        default_headless_gl()
+        model = mujoco.MjModel.from_xml_path(metaworld_xml_path())
+    full = GripperMesh.from_mjcf_body(model, "right_hand", ee_body=SAWYER_EE_BODY, name="full")
+    fingers = GripperMesh.concatenate(
+        [
+            GripperMesh.from_mjcf_body(model, "rightclaw", ee_body=SAWYER_EE_BODY),
+            GripperMesh.from_mjcf_body(model, "leftclaw", ee_body=SAWYER_EE_BODY),
+        ],
+        name="fingers",
+    )
+    full = full.simplified(max_faces)
+    fingers = fingers.simplified(max_faces)
+    if texture:
+        full, fingers = full.with_symmetry_texture(axis=1), fingers.with_symmetry_texture(axis=1)
+    return {"full": full, "fingers": fingers}
+
+
+def metaworld_ee_pose_source(state_layout: str = "pos_grip_quat") -> EEPoseSource:
+    """EE pose source for the MetaWorld state vectors.
+
+    "pos_grip_quat" (this package's ``gym_rnd_metaworld`` env, 8-D): [hand xyz, gripper opening,
+    hand quat wxyz]; "pos_grip" (LeRobot's MetaWorld env, 4-D): [hand xyz, gripper opening] with the
+    nominal fixed hand orientation. Gripper opening: finger distance / 0.1 m clipped to [0, 1]
+    (1 = open; about 0.3 when closed on nothing).
+    """
+    if state_layout == "pos_grip_quat":
+        return EEPoseSource(
+            format="quat_wxyz", position_indices=[0, 1, 2], rotation_indices=[4, 5, 6, 7], gripper_index=3
         )
+    if state_layout == "pos_grip":
+        return EEPoseSource(
+            format="none",
+            position_indices=[0, 1, 2],
+            fixed_rotation=list(SAWYER_HAND_QUAT_WXYZ),
+            gripper_index=3,
+        )
+    raise ValueError(f"unknown MetaWorld state layout {state_layout!r} (pos_grip_quat | pos_grip)")
 
 
-def register_gym_envs() -> None:
-    """Register ``gym_rnd_metaworld/<task>`` for every MetaWorld V3 task (idempotent)."""
-    from gymnasium.envs.registration import registry
+def sawyer_cameras_from_mujoco(
+    model,
+    data,
+    camera_names: Sequence[str],
+    image_size: tuple[int, int],
+    flipped: bool | Sequence[str] = False,
+    camera_keys: Mapping[str, str] | None = None,
+) -> dict[str, CameraCalibration]:
+    """Calibrations of MetaWorld cameras keyed by LeRobot feature key (``observation.images.<name>``).
 
-    for task in METAWORLD_V3_TASKS:
-        env_id = f"{GYM_NAMESPACE}/{task}"
-        if env_id not in registry:
-            gym.register(
-                id=env_id, entry_point="lerobot_rnd.sim.metaworld_env:RnDMetaWorldEnv", kwargs={"task": task}
+    Cameras on the hand body ("behindGripper", "gripperPOV") are EE-mounted (mode "track": they follow
+    the hand position with a fixed world orientation, ``ee_follow_rotation=False``, exact).
+    """
+    import mujoco
+
+    flip_set = set(camera_names) if flipped is True else (set() if flipped is False else set(flipped))
+    hand = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, SAWYER_EE_BODY)
+    cams = {}
+    for cname in camera_names:
+        cid = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, cname)
+        if cid < 0:
+            raise ValueError(f"unknown MetaWorld camera '{cname}'")
+        bid = int(model.cam_bodyid[cid])
+        moving = bid != 0 and int(model.body_weldid[bid]) != 0
+        if moving and bid != hand:
+            raise ValueError(f"camera '{cname}' moves with body '{model.body(bid).name}', not the hand")
+        key = (camera_keys or {}).get(cname, f"observation.images.{cname}")
+        cams[key] = camera_from_mujoco(
+            model,
+            data,
+            cname,
+            image_size,
+            mounted_on_body=SAWYER_EE_BODY if moving else None,
+            flipped=cname in flip_set,
+            name=cname,
+        )
+    return cams
+
+
+def metaworld_sawyer_embodiment(
+    camera_names: Sequence[str] = ("corner2", "behindGripper"),
+    image_size: tuple[int, int] = (128, 128),
+    flipped: bool | Sequence[str] = False,
+    corner2_pos: Sequence[float] | None = LEROBOT_CORNER2_POS,
+    state_layout: str = "pos_grip_quat",
+    camera_keys: Mapping[str, str] | None = None,
+    max_faces: int = 1500,
+    wrist_cameras: Sequence[str] = ("gripperPOV",),
+    model=None,
+    data=None,
+    notes: str | None = None,
+) -> Embodiment:
+    """Embodiment of MetaWorld's Sawyer as rendered by ``lerobot_rnd.sim`` (defaults) or LeRobot.
+
+    - This package's env (``gym_rnd_metaworld/<task>``): the defaults (corner2 moved to LeRobot's
+      position, no flips, 8-D state); preset ``metaworld_sawyer``.
+    - LeRobot's ``--env.type=metaworld`` (one 480x480 corner2 image turned by 180 degrees, key
+      ``observation.image``, 4-D state): :func:`metaworld_sawyer_lerobot_embodiment`, preset
+      ``metaworld_sawyer_lerobot``.
+    ``corner2_pos=None`` keeps MetaWorld's own corner2 position. Cameras in ``wrist_cameras`` render
+    only the fingers mesh; the others the full gripper. ``model`` / ``data``: an env's MuJoCo model and
+    data to calibrate from (its cameras as they are; ``corner2_pos`` is then not applied).
+    """
+    import mujoco
+
+    if model is None:
+        default_headless_gl()
+        model = mujoco.MjModel.from_xml_path(metaworld_xml_path())
+        if corner2_pos is not None:
+            model.cam_pos[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_CAMERA, "corner2")] = np.asarray(
+                corner2_pos
             )
+    if data is None:
+        data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    cams = sawyer_cameras_from_mujoco(model, data, camera_names, image_size, flipped, camera_keys)
+    meshes = sawyer_gripper_meshes(model, max_faces=max_faces)
+    camera_mesh = {k: ("fingers" if c.name in wrist_cameras else "full") for k, c in cams.items()}
+    return Embodiment(
+        cameras=cams,
+        meshes=meshes,
+        camera_mesh=camera_mesh,
+        ee_pose_source=metaworld_ee_pose_source(state_layout),
+        action_adapter=metaworld_action_adapter(),
+        symmetry_axis=1,
+        name="metaworld_sawyer",
+        notes=notes
+        or (
+            "MetaWorld Sawyer; EE frame = body 'hand' (fingers along +x, opening along y); "
+            f"state layout {state_layout}; corner2_pos={None if corner2_pos is None else list(corner2_pos)}"
+        ),
+    )
+
+
+def metaworld_sawyer_lerobot_embodiment() -> Embodiment:
+    """Embodiment of LeRobot's own ``--env.type=metaworld``: one 480x480 corner2 image turned by 180 degrees
+    (key ``observation.image``), 4-D state without the hand orientation."""
+    return metaworld_sawyer_embodiment(
+        ("corner2",), (480, 480), flipped=True, state_layout="pos_grip",
+        camera_keys={"corner2": "observation.image"},
+    )  # fmt: skip
+
+
+def metaworld_action_adapter() -> dict[str, Any]:
+    """Action adapter spec for MetaWorld's 4-D action (``lerobot_rnd.action_adapters``)."""
+    return {"type": "ee_position_delta", "scale": 0.01, "clip": True, "clip_limit": 1.0}
+
+
+
+register_embodiment_preset("metaworld_sawyer", metaworld_sawyer_embodiment)  # this env / lerobot-rnd-record
+register_embodiment_preset("metaworld_sawyer_lerobot", metaworld_sawyer_lerobot_embodiment)
 
 
 # --------------------------------------------------------------------------------------------------
-# LeRobot EnvConfig
+# Gym registration and LeRobot EnvConfig
 # --------------------------------------------------------------------------------------------------
+register_gym_envs(GYM_NAMESPACE, METAWORLD_V3_TASKS, "lerobot_rnd.sim.metaworld_env:RnDMetaWorldEnv")
+
+
 @EnvConfig.register_subclass("rnd_mw")
 @dataclass
-class RnDMetaWorldEnvConfig(EnvConfig):
+class RnDMetaWorldEnvConfig(RnDSimEnvConfig):
     """``--env.type=rnd_mw``: MetaWorld with the cameras and state R&D needs (lerobot_rnd.sim)."""
 
     task: str | None = "reach-v3"
     fps: int = METAWORLD_FPS
     episode_length: int = 300
-    obs_type: str = "pixels_agent_pos"
-    render_mode: str = "rgb_array"
     camera_names: list[str] = field(default_factory=lambda: list(DEFAULT_CAMERAS))
-    observation_height: int = 128
-    observation_width: int = 128
     flip_cameras: list[str] = field(default_factory=list)
     use_lerobot_corner2_pos: bool = True
-    placement: str = "random"
     placements: list[list[float]] | None = None  # MetaWorld rand_vecs cycled through with placement="fixed"
-    terminate_on_success: bool = True
     state_layout: str = "pos_grip_quat"
-    features: dict[str, PolicyFeature] = field(
-        default_factory=lambda: {ACTION: PolicyFeature(type=FeatureType.ACTION, shape=(4,))}
-    )
-    features_map: dict[str, str] = field(default_factory=lambda: {ACTION: ACTION, "agent_pos": OBS_STATE})
+
+    gym_namespace: ClassVar[str] = GYM_NAMESPACE
+    action_dim: ClassVar[int] = 4
+
+    def state_dim(self) -> int:
+        return len(STATE_LAYOUTS[self.state_layout])
 
     def __post_init__(self):
         if self.state_layout not in STATE_LAYOUTS:
             raise ValueError(
                 f"state_layout must be one of {sorted(STATE_LAYOUTS)}, got {self.state_layout!r}"
             )
-        self.features["agent_pos"] = PolicyFeature(
-            type=FeatureType.STATE, shape=(len(STATE_LAYOUTS[self.state_layout]),)
-        )
-        for cam in self.camera_names:
-            self.features[f"pixels/{cam}"] = PolicyFeature(
-                type=FeatureType.VISUAL, shape=(self.observation_height, self.observation_width, 3)
-            )
-            self.features_map[f"pixels/{cam}"] = f"{OBS_IMAGES}.{cam}"
-
-    @property
-    def package_name(self) -> str:
-        return "lerobot_rnd.sim"
-
-    @property
-    def gym_id(self) -> str:
-        return f"{GYM_NAMESPACE}/{self.task}"
+        super().__post_init__()
 
     @property
     def gym_kwargs(self) -> dict:
         return {
-            "camera_names": list(self.camera_names),
-            "observation_height": self.observation_height,
-            "observation_width": self.observation_width,
+            **super().gym_kwargs,
             "flip_cameras": list(self.flip_cameras),
             "corner2_pos": LEROBOT_CORNER2_POS if self.use_lerobot_corner2_pos else None,
-            "episode_length": self.episode_length,
-            "placement": self.placement,
             "placements": self.placements,
-            "terminate_on_success": self.terminate_on_success,
-            "render_mode": self.render_mode,
-            "obs_type": self.obs_type,
             "state_layout": self.state_layout,
         }

@@ -24,16 +24,8 @@ import math
 
 import numpy as np
 
-from lerobot_rnd.sim.panda_env import (
-    BLOCK_HALF,
-    BUTTON_TRAVEL,
-    CUBE_HALF,
-    HOME_QUAT,
-    PANDA_TASKS,
-    quat_mul,
-    quat_to_rotvec,
-    yaw_quat,
-)
+from lerobot_rnd.sim.panda_scene import BLOCK_HALF, BUTTON_TRAVEL, CUBE_HALF, HOME_QUAT, PANDA_TASKS
+from lerobot_rnd.sim.quaternions import matrix_to_quat, quat_mul, quat_to_rotvec, yaw_quat
 
 #: finger-pad tips below the EE (pinch) origin when the gripper is closed on nothing (m)
 CLOSED_TIP_OFFSET = 0.018
@@ -112,10 +104,7 @@ class PandaExpert:
     def ee_error(env, pos, quat) -> tuple[np.ndarray, float]:
         """(position error vector (m), rotation error (rad)) of the REAL EE pose from (pos, quat)."""
         T = env.ee_pose()
-        q = np.zeros(4)
-        import mujoco
-
-        mujoco.mju_mat2Quat(q, T[:3, :3].reshape(9))
+        q = matrix_to_quat(T[:3, :3])
         dq = quat_mul(np.asarray(quat, float), q * np.array([1, -1, -1, -1]))
         return np.asarray(pos, float) - T[:3, 3], float(np.linalg.norm(quat_to_rotvec(dq)))
 

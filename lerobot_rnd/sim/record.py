@@ -32,7 +32,6 @@ from __future__ import annotations
 import argparse
 import json
 import logging
-import os
 import shutil
 import sys
 import time
@@ -42,12 +41,10 @@ from pathlib import Path
 
 import numpy as np
 
-if "MUJOCO_GL" not in os.environ and not os.environ.get("DISPLAY"):
-    os.environ["MUJOCO_GL"] = "egl"
+from lerobot_rnd.embodiment import EMBODIMENT_FILE_IN_DATASET
 
 logger = logging.getLogger(__name__)
 
-EMBODIMENT_FILE = "meta/rnd_embodiment.json"
 RECORDING_FILE = "meta/rnd_recording.json"
 SUITES = ("metaworld", "panda")
 PANDA_DEFAULT_CAMERAS = ["front", "wrist"]
@@ -183,7 +180,7 @@ def run_expert_episode(env, expert, placement: np.ndarray, max_steps: int, extra
 
 def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
     """Record ``settings.episodes`` successful expert episodes of a MetaWorld task; returns a summary dict."""
-    from lerobot_rnd.sim.experts import MetaWorldExpert
+    from lerobot_rnd.sim.metaworld_experts import MetaWorldExpert
     from lerobot_rnd.sim.metaworld_env import (
         LEROBOT_CORNER2_POS,
         MAX_PATH_LENGTH,
@@ -301,7 +298,7 @@ def _record(
             robot_type=robot_type,
             use_videos=False,
         )
-    env.embodiment().save_json(root / EMBODIMENT_FILE)
+    env.embodiment().save_json(root / EMBODIMENT_FILE_IN_DATASET)
     if s.image_writer_threads > 0:
         dataset.start_image_writer(num_processes=0, num_threads=s.image_writer_threads)
 

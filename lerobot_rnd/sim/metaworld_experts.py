@@ -1,23 +1,17 @@
-"""Scripted experts: MetaWorld's per-task heuristic policies behind a small common interface."""
+"""Scripted MetaWorld experts: MetaWorld's per-task heuristic policies behind a small common interface."""
 
 from __future__ import annotations
 
-import json
-from importlib.util import find_spec
-from pathlib import Path
-
 import numpy as np
+
+from lerobot_rnd.sim.metaworld_env import lerobot_metaworld_config
 
 
 def metaworld_policy_class_name(task: str) -> str:
     """Name of MetaWorld's scripted policy class for a V3 task ("reach-v3" -> "SawyerReachV3Policy")."""
-    spec = find_spec("lerobot")
-    if spec is not None and spec.submodule_search_locations:
-        cfg = Path(next(iter(spec.submodule_search_locations))) / "envs" / "metaworld_config.json"
-        if cfg.exists():
-            mapping = json.loads(cfg.read_text()).get("TASK_POLICY_MAPPING", {})
-            if task in mapping:
-                return mapping[task]
+    mapping = lerobot_metaworld_config().get("TASK_POLICY_MAPPING", {})
+    if task in mapping:
+        return mapping[task]
     base, _, version = task.rpartition("-")
     special = {"peg-insert-side": "PegInsertionSide"}
     camel = special.get(base) or "".join(p.capitalize() for p in base.split("-"))
