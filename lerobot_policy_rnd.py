@@ -1,12 +1,16 @@
 """Discovery shim: LeRobot imports distributions named `lerobot_policy_*` by that name.
 
 Registers the `rnd` policy and, when the simulators are importable, the `rnd_mw` / `rnd_panda` environment
-types and the MetaWorld / Panda embodiment presets.
+types and the MetaWorld / Panda embodiment presets; makes the last line of a config error raised by the plugin
+say what is wrong (`lerobot_rnd.cli_errors`).
 """
 
 import logging
 
 import lerobot_rnd  # noqa: F401  (registers the `rnd` policy)
+from lerobot_rnd.cli_errors import install_config_error_hook
+
+install_config_error_hook()  # a CLI config error ends with the plugin's own message
 
 try:  # environments are optional for policy-only use
     import lerobot_rnd.sim  # noqa: F401

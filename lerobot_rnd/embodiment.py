@@ -10,6 +10,7 @@ MetaWorld and Panda presets live in ``lerobot_rnd.sim`` next to their environmen
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import json
 import logging
@@ -43,6 +44,11 @@ logger = logging.getLogger(__name__)
 
 EMBODIMENT_FORMAT = "lerobot_rnd.embodiment"
 EMBODIMENT_VERSION = 1
+#: Top-level keys of an embodiment JSON (`Embodiment.to_dict`); any other key is an error (a misspelling).
+EMBODIMENT_KEYS = frozenset({
+    "format", "version", "name", "notes", "cameras", "camera_mesh", "ee_pose_source", "action_adapter",
+    "symmetry_axis", "meshes",
+})  # fmt: skip
 #: Where a dataset keeps its embodiment, relative to the dataset root (written by lerobot-rnd-record).
 EMBODIMENT_FILE_IN_DATASET = "meta/rnd_embodiment.json"
 
@@ -116,6 +122,11 @@ class Embodiment:
         for k, m in self.meshes.items():
             if not isinstance(m, GripperMesh):
                 raise TypeError(f"meshes['{k}'] must be a GripperMesh, got {type(m).__name__}")
+            if m.num_faces == 0:
+                raise ValueError(
+                    f"meshes['{k}'] has no faces, so the gripper would never be drawn: check the mesh file or "
+                    "the MJCF/URDF body it was loaded from"
+                )
         self.camera_mesh = dict(self.camera_mesh)
         default_mesh = "full" if "full" in self.meshes else next(iter(self.meshes))
         for k in self.cameras:
@@ -226,6 +237,16 @@ class Embodiment:
             raise ValueError(
                 f"embodiment version {d.get('version')} is newer than supported ({EMBODIMENT_VERSION})"
             )
+        unknown = sorted(set(d) - EMBODIMENT_KEYS)
+        if unknown:
+            hints = [
+                f"{k!r} (did you mean {close[0]!r}?)" if (close := difflib.get_close_matches(k, EMBODIMENT_KEYS, 1))
+                else repr(k)
+                for k in unknown
+            ]
+            raise ValueError(
+                f"embodiment description: unknown key(s) {', '.join(hints)}; valid keys: {sorted(EMBODIMENT_KEYS)}"
+            )
         for req in ("cameras", "meshes"):
             if req not in d:
                 raise ValueError(f"embodiment description has no '{req}'")
@@ -250,7 +271,21 @@ class Embodiment:
 
     @classmethod
     def load_json(cls, path: str | os.PathLike) -> Embodiment:
-        return cls.from_dict(json.loads(Path(path).read_text()))
+        """Read an embodiment JSON; errors name the file (and the line, for invalid JSON)."""
+        path = Path(path)
+        try:
+            d = json.loads(path.read_text())
+        except json.JSONDecodeError as err:
+            raise ValueError(
+                f"{path}: not valid JSON ({err.msg} at line {err.lineno}, column {err.colno}); fix the file or "
+                "write it again with Embodiment.save_json"
+            ) from err
+        if not isinstance(d, Mapping):
+            raise TypeError(f"{path}: an embodiment JSON holds an object ({{...}}), got {type(d).__name__}")
+        try:
+            return cls.from_dict(d)
+        except (ValueError, TypeError, KeyError) as err:
+            raise type(err)(f"{path}: {err}") from err
 
     # ------------------------------------------------------------------ validation
     def validate_against(self, features: Mapping[str, Any], require_all_cameras: bool = True) -> None:

@@ -67,9 +67,19 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
                 f"{', '.join(embodiment_preset_names())}), or record the dataset with `lerobot-rnd-record`, which writes "
                 f"{EMBODIMENT_FILE_IN_DATASET}. See docs/CALIBRATION.md."
             )
+        _check_checkpoint_fits_inputs(config)
         _validate_cameras(config)
         return None
 
+    missing = [key for key in config.image_features if key not in embodiment.cameras]
+    if missing:
+        raise ValueError(
+            f"The embodiment {embodiment.name or source!r} calibrates cameras {sorted(embodiment.cameras)}, but the "
+            f"policy's images are {sorted(config.image_features)} (no calibration for {missing}). The embodiment "
+            "is probably for another robot or dataset: use the dataset's own embodiment file (recorded by "
+            "lerobot-rnd-record) or a preset for this robot, calibrate these cameras (docs/CALIBRATION.md), or "
+            "rename the dataset's cameras with --rename_map."
+        )
     config.cameras = {
         key: {**cam.to_dict(), "mesh": embodiment.camera_mesh.get(key, "full")}
         for key, cam in embodiment.cameras.items()
@@ -95,6 +105,29 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
     config.mesh_shapes = {name: [len(m.vertices), len(m.faces)] for name, m in meshes.items()}
     _validate_cameras(config)
     return meshes
+
+
+def _check_checkpoint_fits_inputs(config) -> None:
+    """A saved policy (calibration inside its config) must fit the inputs it is given (a dataset's or, at
+    evaluation, an environment's features): same cameras and the action size of its action adapter."""
+    from lerobot_rnd.action_adapters import ActionAdapter
+
+    missing = [key for key in config.image_features if key not in config.cameras]
+    action = config.action_feature
+    try:
+        adapter_dim = ActionAdapter.from_dict(config.action_adapter).action_dim if config.action_adapter else None
+    except (ValueError, OSError, ImportError):  # e.g. a joint adapter whose URDF is not here: checked later
+        adapter_dim = None
+    wrong_action = action is not None and adapter_dim is not None and action.shape[0] != adapter_dim
+    if missing or wrong_action:
+        raise ValueError(
+            f"This R&D checkpoint was trained for a robot with cameras {sorted(config.cameras)} and "
+            f"{adapter_dim}-D actions ({config.action_adapter.get('type')!r}), but it is given cameras "
+            f"{sorted(config.image_features)} and {action.shape[0] if action else '?'}-D actions: the checkpoint's "
+            "robot and the environment's (or dataset's) robot differ. Evaluate it in the environment it was "
+            "trained in (its train_config.json names it, e.g. --env.type=rnd_panda), or map camera names with "
+            "--rename_map."
+        )
 
 
 def _validate_cameras(config) -> None:

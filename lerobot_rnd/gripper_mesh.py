@@ -558,6 +558,9 @@ class GripperMesh:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> GripperMesh:
+        unknown = sorted(set(d) - {"vertices", "faces", "vertex_colors", "name"})
+        if unknown:
+            raise ValueError(f"mesh {d.get('name', '?')!r}: unknown keys {unknown}; keys: vertices, faces, vertex_colors, name")
         for req in ("vertices", "faces"):
             if req not in d:
                 raise ValueError(f"mesh {d.get('name', '?')!r}: missing '{req}'")

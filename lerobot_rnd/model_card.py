@@ -1,5 +1,7 @@
-"""Hub model card for R&D checkpoints (LeRobot's template does not know plugin policy types)."""
+"""Hub publishing of R&D checkpoints: the model card (LeRobot's template does not know plugin policy types)
+and a check, before training starts, that the push at its end can succeed."""
 
+import os
 import shlex
 import sys
 
@@ -82,7 +84,35 @@ def make_rnd_model_card(config, dataset_repo_id, license: str | None, tags: list
         image_size="x".join(str(s) for s in config.image_size),
         num_inference_steps=config.num_inference_steps,
         final_step=" + a final action-space step" if config.final_action_step and config.variant != "I" else "",
-        dataset=dataset_repo_id,
+        dataset=dataset_repo_id or "not recorded in this checkpoint (see train_config.json)",
         command=training_command(),
         repo_id=config.repo_id or "<repo_id>",
     )
+
+
+def check_hub_push_ready(config) -> None:
+    """Raise before training if `--policy.push_to_hub=true` could only fail after it (LeRobot pushes at the end).
+
+    Checks that the Hub is not switched off (HF_HUB_OFFLINE) and that the repo `config.repo_id` exists or can
+    be created with the current token. Does nothing without push_to_hub or repo_id.
+    """
+    if not getattr(config, "push_to_hub", False) or not getattr(config, "repo_id", None):
+        return
+    from huggingface_hub import HfApi, constants
+
+    offline = getattr(constants, "is_offline_mode", None)
+    if (offline() if callable(offline) else constants.HF_HUB_OFFLINE) or os.environ.get("HF_HUB_OFFLINE") == "1":
+        raise RuntimeError(
+            f"--policy.push_to_hub=true (repo {config.repo_id!r}) but the Hugging Face Hub is switched off "
+            "(HF_HUB_OFFLINE=1): the push at the end of training would fail. Train with --policy.push_to_hub=false "
+            "and push the checkpoint later (huggingface-cli upload <repo_id> <output_dir>/checkpoints/last/"
+            "pretrained_model), or unset HF_HUB_OFFLINE."
+        )
+    try:
+        HfApi().create_repo(repo_id=config.repo_id, private=getattr(config, "private", None), exist_ok=True)
+    except Exception as err:  # network, auth and permission errors alike
+        raise RuntimeError(
+            f"--policy.push_to_hub=true: the Hub repo {config.repo_id!r} cannot be reached or created ({err}). "
+            "Checked before training so that no run ends without its push: log in (huggingface-cli login), fix "
+            "--policy.repo_id, or train with --policy.push_to_hub=false and push the checkpoint later."
+        ) from err

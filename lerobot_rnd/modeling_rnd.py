@@ -12,14 +12,14 @@ import logging
 import warnings
 from collections import deque
 from contextlib import nullcontext
+from pathlib import Path
 
 import torch
 import torch.nn.functional as F  # noqa: N812
-from torch import Tensor, nn
-
 from lerobot.policies.pretrained import PreTrainedPolicy
 from lerobot.policies.utils import populate_queues
 from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
+from torch import Tensor, nn
 
 from lerobot_rnd.action_adapters import ActionAdapter
 from lerobot_rnd.configuration_rnd import RnDConfig, migrate_saved_config
@@ -65,7 +65,16 @@ class RnDPolicy(PreTrainedPolicy):
         super().__init__(config)
         config.validate_features()
         self.config = config
+        if dataset_meta is not None and not getattr(dataset_meta, "total_frames", 1):
+            raise ValueError(
+                f"Dataset {getattr(dataset_meta, 'repo_id', '?')} at {getattr(dataset_meta, 'root', '?')} has no "
+                "frames: record or add episodes before training (R&D estimates its statistics from them)."
+            )
         embodiment_meshes = resolve_embodiment(config, dataset_meta)
+        if dataset_meta is not None:  # training from scratch: fail now, not after the run, if the push cannot work
+            from lerobot_rnd.model_card import check_hub_push_ready
+
+            check_hub_push_ready(config)
         self.model = RnDModel(config, embodiment_meshes)
         if dataset_meta is not None:
             self.model.fit_statistics(dataset_meta)
@@ -85,13 +94,59 @@ class RnDPolicy(PreTrainedPolicy):
         if saved is not None:
             migrated = migrate_saved_config(config, saved)
             if migrated:
-                logging.info(
+                logger.info(
                     "R&D checkpoint %s predates %s: loaded with %s",
                     pretrained_name_or_path,
                     ", ".join(migrated),
                     ", ".join(f"{k}={getattr(config, k)!r}" for k in migrated),
                 )
         return super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
+
+    @classmethod
+    def _load_as_safetensor(cls, model, model_file: str, map_location: str, strict: bool):
+        """LeRobot's loader, but a damaged file or weights that do not fit config.json raise an error naming the
+        checkpoint (LeRobot loads non-strictly and would keep random weights for every missing tensor)."""
+        from safetensors import safe_open
+
+        checkpoint = Path(model_file).parent
+        try:
+            with safe_open(model_file, framework="pt") as f:
+                saved = set(f.keys())
+        except Exception as err:  # safetensors raises its own error types
+            raise ValueError(
+                f"R&D checkpoint {checkpoint}: {Path(model_file).name} cannot be read ({err}). The file is damaged "
+                "or was only partly written (an interrupted save, copy or download): use another checkpoint or "
+                "fetch this one again."
+            ) from err
+        expected = set(model.state_dict())
+        missing = sorted(expected - saved - set(OPTIONAL_CHECKPOINT_KEYS))
+        unexpected = sorted(saved - expected)
+        if missing or unexpected:
+            cfg = model.config
+            raise ValueError(
+                f"R&D checkpoint {checkpoint}: model.safetensors does not fit its config.json (variant "
+                f"{cfg.variant!r}, dim_model {cfg.dim_model}, n_layers {cfg.n_layers}, use_ema {cfg.use_ema}): "
+                f"{len(missing)} tensor(s) missing (e.g. {missing[:3]}), {len(unexpected)} unexpected (e.g. "
+                f"{unexpected[:3]}). The two files come from different runs: copy config.json and "
+                "model.safetensors from the same checkpoint folder."
+            )
+        return super()._load_as_safetensor(model, model_file, map_location, strict)
+
+    def _save_pretrained(self, save_directory: Path) -> None:
+        """config.json and model.safetensors as LeRobot writes them, without the local path of the embodiment
+        file (the calibration and meshes are inside the checkpoint), and a README.md model card."""
+        source = self.config.embodiment
+        local_source = source is not None and (source.endswith(".json") or "/" in source or Path(source).exists())
+        if local_source:
+            self.config.embodiment = None
+        try:
+            super()._save_pretrained(save_directory)
+        finally:
+            if local_source:
+                self.config.embodiment = source
+        if not (Path(save_directory) / "README.md").exists():
+            card = self.generate_model_card(None, self.config.type, self.config.license, self.config.tags)
+            card.save(str(Path(save_directory) / "README.md"))
 
     def get_optim_params(self) -> dict:
         return self.model.network.parameters()
@@ -118,7 +173,10 @@ class RnDPolicy(PreTrainedPolicy):
                 "calibrate these cameras."
             )
         batch = dict(batch)
-        images = [resize_images(batch[key], self.config.image_size, key) for key in self.config.image_features]
+        images = [
+            resize_images(as_float_images(batch[key], key), self.config.image_size, key)
+            for key in self.config.image_features
+        ]
         batch[OBS_IMAGES] = torch.stack(images, dim=-4)
         return batch
 
@@ -170,13 +228,17 @@ class RnDPolicy(PreTrainedPolicy):
         return make_rnd_model_card(self.config, dataset_repo_id, license, tags)
 
 
+#: Tensors a checkpoint may lack, with why: they load with their initial value.
+OPTIONAL_CHECKPOINT_KEYS = {
+    "model.gripper_pos_weight": "training-only gripper class weight, added after the first checkpoints",
+}
+
 _HUB_KWARGS = ("force_download", "resume_download", "proxies", "token", "cache_dir", "local_files_only", "revision")
 
 
 def _read_saved_config(pretrained_name_or_path, hub_kwargs: dict) -> dict | None:
     """The checkpoint's config.json as a dict (local folder or the Hub cache), or None where unreadable."""
     import json
-    from pathlib import Path
 
     path = Path(str(pretrained_name_or_path)) / "config.json"
     if not path.is_file():
@@ -190,6 +252,32 @@ def _read_saved_config(pretrained_name_or_path, hub_kwargs: dict) -> dict | None
         return json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+
+
+def as_float_images(images: Tensor, key: str = "image") -> Tensor:
+    """Camera images (..., 3, h, w) as float in [0, 1], checked.
+
+    uint8 images (0-255) are divided by 255 (the one conversion done silently); other integer types, NaN/Inf
+    pixels and float values far outside [0, 1] (0-255 floats, mean/std-normalised images) raise a ValueError
+    naming the camera key.
+    """
+    if images.dtype == torch.uint8:
+        return images.float() / 255.0
+    if not torch.is_floating_point(images):
+        raise ValueError(f"{key}: images must be float in [0, 1] (or uint8 in [0, 255]), got dtype {images.dtype}.")
+    bad = ~torch.isfinite(images)
+    if bad.any():
+        raise ValueError(
+            f"{key}: {int(bad.sum())} NaN/Inf pixel value(s) in the image: check the camera or the dataset's frames "
+            "for this key."
+        )
+    lo, hi = float(images.min()), float(images.max())
+    if hi > 1.5 or lo < -0.5:
+        raise ValueError(
+            f"{key}: pixel values span [{lo:.3g}, {hi:.3g}] but R&D expects raw images in [0, 1]: divide 0-255 "
+            "images by 255, and keep normalization_mapping VISUAL=IDENTITY (R&D draws into the raw image)."
+        )
+    return images
 
 
 def resize_images(images: Tensor, size: tuple[int, int], key: str = "image") -> Tensor:

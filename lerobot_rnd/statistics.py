@@ -169,7 +169,8 @@ def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 16) -> dict[s
     d_max = torch.full((n_cam, 3), float("-inf"), device=device)
     generator = torch.Generator(device="cpu").manual_seed(cfg_seed(cfg))
     h, w = cfg.image_size
-    for start in tqdm(range(0, len(state), batch_size), desc="R&D image-space target statistics", leave=False):
+    desc = f"R&D image-space target statistics ({len(state)} samples; fewer: --policy.stats_num_samples)"
+    for start in tqdm(range(0, len(state), batch_size), desc=desc, leave=False):
         sl = slice(start, start + batch_size)
         st, ac, valid = state[sl].to(device), action[sl].to(device), (~is_pad[sl]).to(device)
         b = st.shape[0]

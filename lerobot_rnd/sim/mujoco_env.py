@@ -10,10 +10,13 @@ Observation of every env (LeRobot's ``preprocess_observation`` maps it to ``obse
 
 from __future__ import annotations
 
+import json
 import logging
 import os
+import sys
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -238,6 +241,22 @@ class RnDMuJoCoEnv(gym.Env):
         self._renderers.clear()
 
 
+def task_of_checkpoint_in_argv(argv: list[str]) -> tuple[str | None, str | None]:
+    """(task, checkpoint) when the command line names a local checkpoint (``--policy.path``) but no
+    ``--env.task``, and the checkpoint's train_config.json records its env task; else (None, None)."""
+    if any(a == "--env.task" or a.startswith("--env.task=") for a in argv):
+        return None, None
+    paths = [a.split("=", 1)[1] for a in argv if a.startswith("--policy.path=")]
+    if not paths:
+        return None, None
+    train_config = Path(paths[-1]) / "train_config.json"
+    try:
+        task = (json.loads(train_config.read_text()).get("env") or {}).get("task")
+    except (OSError, ValueError):
+        return None, None
+    return (task, paths[-1]) if isinstance(task, str) else (None, None)
+
+
 @dataclass
 class RnDSimEnvConfig(EnvConfig):
     """Fields and LeRobot feature mapping shared by ``--env.type=rnd_mw`` and ``rnd_panda`` (not an env type).
@@ -261,6 +280,14 @@ class RnDSimEnvConfig(EnvConfig):
         raise NotImplementedError
 
     def __post_init__(self):
+        trained_task, checkpoint = task_of_checkpoint_in_argv(sys.argv[1:])
+        if trained_task is not None and trained_task != self.task:
+            logging.getLogger(__name__).warning(
+                "No --env.task given: evaluating on %r, the task the checkpoint %s was trained on (not the "
+                "default %r). Pass --env.task to choose another.",
+                trained_task, checkpoint, self.task,
+            )  # fmt: skip
+            self.task = trained_task
         self.features.setdefault(ACTION, PolicyFeature(type=FeatureType.ACTION, shape=(self.action_dim,)))
         self.features["agent_pos"] = PolicyFeature(type=FeatureType.STATE, shape=(self.state_dim(),))
         for cam in self.camera_names:
