@@ -223,12 +223,15 @@ def se3_log(T: Tensor) -> Tensor:
 def rotation_6d_to_matrix(d6: Tensor) -> Tensor:
     """6-D rotation (...,6) = [column 0 (3), column 1 (3)] (Zhou et al. 2019) -> R (...,3,3).
 
-    Gram-Schmidt: b1 = a1/|a1|, b2 = normalised a2 minus its b1 part, b3 = b1 x b2.
+    Gram-Schmidt: b1 = a1/|a1|, b2 = normalised a2 minus its b1 part, b3 = b1 x b2. The b1 part is removed
+    twice, so b2 stays orthogonal to b1 (to rounding) even when a2 is nearly parallel to a1; a1 = 0 or a2
+    exactly parallel to a1 define no rotation (the result may then not be one).
     """
     a1, a2 = d6[..., :3], d6[..., 3:]
     eps = torch.finfo(d6.dtype).tiny
     b1 = a1 / a1.norm(dim=-1, keepdim=True).clamp_min(eps)
-    a2 = a2 - (b1 * a2).sum(-1, keepdim=True) * b1
+    for _ in range(2):  # one pass leaves a b1 part of ~eps |a2| / |a2 - b1 part|: large for near-parallel a2
+        a2 = a2 - (b1 * a2).sum(-1, keepdim=True) * b1
     b2 = a2 / a2.norm(dim=-1, keepdim=True).clamp_min(eps)
     b3 = torch.linalg.cross(b1, b2, dim=-1)
     return torch.stack([b1, b2, b3], -1)

@@ -1,0 +1,270 @@
+"""Property tests of lerobot_rnd.geometry and the sampler's point update (issue 11), CPU.
+
+Each property is checked on many random cases in one batched call, against an independent reference:
+scipy.spatial.transform.Rotation for rotations, a hand-computed case, and a float64 numpy Kabsch/Arun
+solver for the weighted rigid registration. Tests of single cases live in tests/test_geometry.py and
+tests/test_sampler.py; this file does not repeat them.
+
+Stated tolerances: every output transform is finite, has the last row [0, 0, 0, 1] exactly, and a
+rotation block with max |R^T R - I| and |det R - 1| below RIGID_TOL[dtype].
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+from scipy.spatial.transform import Rotation
+
+from lerobot_rnd.geometry import (
+    ROTATION_DIMS,
+    action_from_pose,
+    compose_transforms,
+    invert_transform,
+    make_transform,
+    pose_from_action,
+    relative_transform,
+    rotation_to_matrix,
+    so3_exp,
+    so3_log,
+    transform_points,
+)
+
+DTYPES = [torch.float64, torch.float32]
+METHODS = ["svd", "horn"]
+#: max |R^T R - I| and |det R - 1| of every returned rotation
+RIGID_TOL = {torch.float64: 1e-12, torch.float32: 4e-6}
+#: agreement of a rotation matrix with scipy's (float64) for the same input
+ROT_TOL = {torch.float64: 1e-12, torch.float32: 2e-6}
+#: rotation angles where closed forms are hard: 0, the Taylor/closed-form switch (0.1 in float64,
+#: 0.5 in float32) and just below pi
+EXTREME_ANGLES = [
+    0.0,
+    1e-300,
+    1e-15,
+    1e-10,
+    1e-7,
+    1e-4,
+    0.1,
+    0.5,
+    1.0,
+    math.pi / 2,
+    math.pi - 1e-2,
+    math.pi - 1e-4,
+    math.pi - 1e-6,
+    math.pi - 1e-9,
+    math.pi,
+]
+
+
+def assert_rigid(T: torch.Tensor, dtype: torch.dtype) -> None:
+    """Every (4, 4) in T is finite, has last row [0, 0, 0, 1] and a proper orthonormal rotation block."""
+    assert T.dtype == dtype and T.shape[-2:] == (4, 4)
+    assert torch.isfinite(T).all(), "non-finite transform"
+    bottom = torch.tensor([0.0, 0.0, 0.0, 1.0], dtype=dtype)
+    assert torch.equal(T[..., 3, :], bottom.expand_as(T[..., 3, :])), "last row is not [0, 0, 0, 1]"
+    assert_rotation(T[..., :3, :3], dtype)
+
+
+def assert_rotation(R: torch.Tensor, dtype: torch.dtype) -> None:
+    assert torch.isfinite(R).all(), "non-finite rotation"
+    Rd = R.double()
+    orth = (Rd.transpose(-1, -2) @ Rd - torch.eye(3, dtype=torch.float64)).abs().amax()
+    det = (torch.linalg.det(Rd) - 1).abs().amax()
+    assert orth <= RIGID_TOL[dtype], f"max |R^T R - I| = {orth:.2e} > {RIGID_TOL[dtype]:g}"
+    assert det <= RIGID_TOL[dtype], f"max |det R - 1| = {det:.2e} > {RIGID_TOL[dtype]:g}"
+
+
+def _unit(rng, n):
+    v = rng.normal(size=(n, 3))
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _rotvecs(rng, n_random: int, n_axes: int) -> np.ndarray:
+    """n_random uniform rotations (angle in [0, pi]) plus every EXTREME_ANGLES value on n_axes random axes."""
+    rand = Rotation.random(n_random, random_state=rng).as_rotvec()
+    extreme = (_unit(rng, n_axes)[:, None, :] * np.array(EXTREME_ANGLES)[None, :, None]).reshape(-1, 3)
+    return np.concatenate([rand, extreme])
+
+
+def _random_transforms(rng, n: int, trans_scale: float = 1.0) -> np.ndarray:
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, :3] = Rotation.random(n, random_state=rng).as_matrix()
+    T[:, :3, 3] = rng.normal(size=(n, 3)) * trans_scale
+    return T
+
+
+def _rotation_angle_between(Ra: np.ndarray, Rb: np.ndarray) -> np.ndarray:
+    """Angle (rad) of Ra^T Rb per element, from scipy (float64)."""
+    return Rotation.from_matrix(np.swapaxes(Ra, -1, -2) @ Rb).magnitude()
+
+
+# ------------------------------------------------------------------------ SO(3) / SE(3) maps
+
+
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_so3_exp_log_round_trips_vs_scipy_incl_angles_near_0_and_pi(dtype):
+    rng = np.random.default_rng(100)
+    rv = _rotvecs(rng, n_random=2000, n_axes=40)
+    rv_t = torch.tensor(rv, dtype=dtype)
+    rv64 = rv_t.double().numpy()  # the input as the function sees it
+    angle = np.linalg.norm(rv64, axis=-1)
+
+    # exp: matches scipy for the same input, rigid
+    R = so3_exp(rv_t)
+    assert R.dtype == dtype
+    assert_rotation(R, dtype)
+    R_ref = Rotation.from_rotvec(rv64).as_matrix()
+    np.testing.assert_allclose(R.double().numpy(), R_ref, atol=ROT_TOL[dtype])
+
+    # log of a rotation matrix: angle in [0, pi], matches scipy's rotation vector (up to the axis sign at pi)
+    R_in = torch.tensor(R_ref, dtype=dtype)
+    w = so3_log(R_in)
+    assert torch.isfinite(w).all()
+    w64 = w.double().numpy()
+    w_angle = np.linalg.norm(w64, axis=-1)
+    assert (w_angle <= math.pi + 10 * ROT_TOL[dtype]).all()
+    log_tol = {torch.float64: 1e-12, torch.float32: 4e-6}[dtype]
+    away = angle < math.pi - 1e-3  # below pi the rotation vector is unique and well conditioned
+    np.testing.assert_allclose(w64[away], rv64[away], atol=log_tol)
+    # at and near pi: the log is a rotation vector of the same rotation, of angle ~pi
+    np.testing.assert_allclose(w_angle[~away], angle[~away], atol=log_tol)
+    err = _rotation_angle_between(Rotation.from_rotvec(w64).as_matrix(), R_in.double().numpy())
+    assert err.max() < 10 * ROT_TOL[dtype], err.max()
+
+    # exp(log(R)) = R, rigid
+    R_back = so3_exp(w)
+    assert_rotation(R_back, dtype)
+    np.testing.assert_allclose(R_back.double().numpy(), R_in.double().numpy(), atol=10 * ROT_TOL[dtype])
+
+
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_composition_and_inversion_vs_scipy(dtype):
+    rng = np.random.default_rng(101)
+    n = 1000
+    Ta, Tb = _random_transforms(rng, n), _random_transforms(rng, n)
+    ra, rb = Rotation.from_matrix(Ta[:, :3, :3]), Rotation.from_matrix(Tb[:, :3, :3])
+    Ta_t, Tb_t = torch.tensor(Ta, dtype=dtype), torch.tensor(Tb, dtype=dtype)
+    tol = {torch.float64: 1e-12, torch.float32: 5e-6}[dtype]
+
+    Tab = compose_transforms(Ta_t, Tb_t)
+    assert_rigid(Tab, dtype)
+    np.testing.assert_allclose(Tab[:, :3, :3].double().numpy(), (ra * rb).as_matrix(), atol=tol)
+    np.testing.assert_allclose(
+        Tab[:, :3, 3].double().numpy(), ra.apply(Tb[:, :3, 3]) + Ta[:, :3, 3], atol=tol
+    )
+
+    Ti = invert_transform(Ta_t)
+    assert_rigid(Ti, dtype)
+    np.testing.assert_allclose(Ti[:, :3, :3].double().numpy(), ra.inv().as_matrix(), atol=tol)
+    np.testing.assert_allclose(Ti[:, :3, 3].double().numpy(), -ra.inv().apply(Ta[:, :3, 3]), atol=tol)
+    eye = np.broadcast_to(np.eye(4), (n, 4, 4))
+    np.testing.assert_allclose((Ti @ Ta_t).double().numpy(), eye, atol=tol)
+    np.testing.assert_allclose((Ta_t @ Ti).double().numpy(), eye, atol=tol)
+    np.testing.assert_allclose(invert_transform(Ti).double().numpy(), Ta_t.double().numpy(), atol=tol)
+    # inv(A B) = inv(B) inv(A); relative_transform(A, B) = inv(A) B
+    np.testing.assert_allclose(
+        invert_transform(Tab).double().numpy(), (invert_transform(Tb_t) @ Ti).double().numpy(), atol=tol
+    )
+    rel = relative_transform(Ta_t, Tb_t)
+    assert_rigid(rel, dtype)
+    np.testing.assert_allclose(rel[:, :3, :3].double().numpy(), (ra.inv() * rb).as_matrix(), atol=tol)
+
+
+def test_hand_computed_transform():
+    """T = [Rz(90 deg), (1, 2, 3)]: every number below is worked out by hand."""
+    Rz90 = torch.tensor([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]], dtype=torch.float64)
+    T = make_transform(Rz90, torch.tensor([1.0, 2, 3], dtype=torch.float64))
+    p = torch.tensor([[1.0, 0, 0], [0, 1, 0], [0, 0, 0]], dtype=torch.float64)
+    # Rz90 (1,0,0) = (0,1,0); Rz90 (0,1,0) = (-1,0,0)
+    expected = torch.tensor([[1.0, 3, 3], [0, 2, 3], [1, 2, 3]], dtype=torch.float64)
+    torch.testing.assert_close(transform_points(T, p), expected, atol=1e-15, rtol=0)
+    # T^-1 = [Rz(-90), -Rz(-90) (1,2,3)] = [Rz(-90), -(2, -1, 3)]
+    T_inv = invert_transform(T)
+    torch.testing.assert_close(T_inv[:3, :3], Rz90.T, atol=0, rtol=0)
+    torch.testing.assert_close(
+        T_inv[:3, 3], torch.tensor([-2.0, 1, -3], dtype=torch.float64), atol=1e-15, rtol=0
+    )
+    # T T = [Rz(180), Rz90 (1,2,3) + (1,2,3)] = [diag(-1,-1,1), (-2,1,3) + (1,2,3)]
+    TT = compose_transforms(T, T)
+    torch.testing.assert_close(TT[:3, :3], torch.diag(torch.tensor([-1.0, -1, 1], dtype=torch.float64)))
+    torch.testing.assert_close(TT[:3, 3], torch.tensor([-1.0, 3, 6], dtype=torch.float64))
+    # log / exp: Rz90 <-> (0, 0, pi/2); a rotation by pi about x is diag(1, -1, -1)
+    torch.testing.assert_close(so3_log(Rz90), torch.tensor([0, 0, math.pi / 2], dtype=torch.float64))
+    Rx180 = so3_exp(torch.tensor([math.pi, 0, 0], dtype=torch.float64))
+    torch.testing.assert_close(Rx180, torch.diag(torch.tensor([1.0, -1, -1], dtype=torch.float64)))
+    torch.testing.assert_close(
+        action_from_pose(T), torch.tensor([1.0, 2, 3, 0, 0, math.pi / 2], dtype=torch.float64)
+    )
+
+
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_pose_from_action_and_action_from_pose_round_trip(dtype):
+    rng = np.random.default_rng(102)
+    rv = _rotvecs(rng, n_random=1000, n_axes=20)
+    a = np.concatenate([rng.normal(size=rv.shape) * 0.1, rv], -1)
+    a_t = torch.tensor(a, dtype=dtype)
+    a64 = a_t.double().numpy()
+    T = pose_from_action(a_t)
+    assert_rigid(T, dtype)
+    np.testing.assert_allclose(T[:, :3, 3].double().numpy(), a64[:, :3], atol=0)
+    np.testing.assert_allclose(
+        T[:, :3, :3].double().numpy(), Rotation.from_rotvec(a64[:, 3:]).as_matrix(), atol=ROT_TOL[dtype]
+    )
+    back = action_from_pose(T)
+    assert torch.isfinite(back).all()
+    away = np.linalg.norm(a64[:, 3:], axis=-1) < math.pi - 1e-3
+    tol = {torch.float64: 1e-12, torch.float32: 4e-6}[dtype]
+    np.testing.assert_allclose(back.double().numpy()[away], a64[away], atol=tol)
+    # near pi the rotation vector may flip to -axis * angle: the pose is what must come back
+    np.testing.assert_allclose(
+        pose_from_action(back).double().numpy(), T.double().numpy(), atol=10 * ROT_TOL[dtype]
+    )
+
+    # the other way round, from random poses built by scipy
+    Tr = torch.tensor(_random_transforms(rng, 1000, 0.3), dtype=dtype)
+    Tr_back = pose_from_action(action_from_pose(Tr))
+    assert_rigid(Tr_back, dtype)
+    np.testing.assert_allclose(Tr_back.double().numpy(), Tr.double().numpy(), atol=10 * ROT_TOL[dtype])
+
+
+def _nearly_parallel_6d(rng, n):
+    """6-D rotations whose second column is within 1e-5..1e-2 rad of +-the first (both of random length)."""
+    a1 = rng.normal(size=(n, 3))
+    a2 = a1 * rng.uniform(-3, 3, size=(n, 1)) + _unit(rng, n) * np.linalg.norm(a1, axis=-1, keepdims=True) * (
+        10.0 ** rng.uniform(-5, -2, size=(n, 1))
+    )
+    return np.concatenate([a1, a2], -1)
+
+
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_rotation_formats_map_arbitrary_inputs_to_rigid_rotations(dtype):
+    """Unnormalised quaternions, arbitrary 6-D vectors (also nearly parallel columns), large Euler angles and rotation vectors beyond pi all give
+    proper rotations; scipy agrees where it defines the map."""
+    rng = np.random.default_rng(103)
+    n = 1000
+    q = rng.normal(size=(n, 4)) * rng.uniform(0.1, 10, size=(n, 1))
+    inputs = {
+        "quat_wxyz": q,
+        "quat_xyzw": q,
+        "rotvec": _unit(rng, n) * rng.uniform(0, 4 * math.pi, size=(n, 1)),
+        "rot6d": np.concatenate([rng.normal(size=(n // 2, 6)), _nearly_parallel_6d(rng, n - n // 2)]),
+        "euler_xyz": rng.uniform(-4 * math.pi, 4 * math.pi, size=(n, 3)),
+    }
+    refs = {
+        "quat_wxyz": lambda r: Rotation.from_quat(np.concatenate([r[:, 1:], r[:, :1]], -1)),
+        "quat_xyzw": Rotation.from_quat,
+        "rotvec": Rotation.from_rotvec,
+        "euler_xyz": lambda r: Rotation.from_euler("xyz", r),
+    }
+    assert set(inputs) | {"matrix"} == set(ROTATION_DIMS)
+    for fmt, r in inputs.items():
+        r_t = torch.tensor(r, dtype=dtype)
+        R = rotation_to_matrix(r_t, fmt)
+        assert_rotation(R, dtype)
+        if fmt in refs:
+            R_ref = refs[fmt](r_t.double().numpy()).as_matrix()
+            atol = ROT_TOL[dtype] * (10 if fmt in ("rotvec", "euler_xyz") else 1)  # angles up to 4 pi
+            np.testing.assert_allclose(R.double().numpy(), R_ref, atol=atol, err_msg=fmt)
