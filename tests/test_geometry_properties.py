@@ -30,6 +30,7 @@ from lerobot_rnd.geometry import (
     so3_exp,
     so3_log,
     transform_points,
+    weighted_rigid_registration,
 )
 
 DTYPES = [torch.float64, torch.float32]
@@ -268,3 +269,235 @@ def test_rotation_formats_map_arbitrary_inputs_to_rigid_rotations(dtype):
             R_ref = refs[fmt](r_t.double().numpy()).as_matrix()
             atol = ROT_TOL[dtype] * (10 if fmt in ("rotvec", "euler_xyz") else 1)  # angles up to 4 pi
             np.testing.assert_allclose(R.double().numpy(), R_ref, atol=atol, err_msg=fmt)
+
+
+# ------------------------------------------------------------------------ weighted rigid registration
+
+
+def kabsch_np(src: np.ndarray, dst: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Float64 numpy reference: weighted Kabsch/Arun, det fixed to +1. (B,N,3), (B,N,3), (B,N) -> (B,4,4)."""
+    wn = w / w.sum(-1, keepdims=True)
+    mu_s = np.einsum("bn,bni->bi", wn, src)
+    mu_d = np.einsum("bn,bni->bi", wn, dst)
+    H = np.einsum("bn,bni,bnj->bij", wn, src - mu_s[:, None], dst - mu_d[:, None])
+    U, _, Vt = np.linalg.svd(H)
+    V = np.swapaxes(Vt, -1, -2)
+    d = np.sign(np.linalg.det(V @ np.swapaxes(U, -1, -2)))
+    D = np.ones((len(src), 3))
+    D[:, 2] = d
+    R = (V * D[:, None, :]) @ np.swapaxes(U, -1, -2)
+    T = np.tile(np.eye(4), (len(src), 1, 1))
+    T[:, :3, :3] = R
+    T[:, :3, 3] = mu_d - np.einsum("bij,bj->bi", R, mu_s)
+    return T
+
+
+def _cost(T: np.ndarray, src: np.ndarray, dst: np.ndarray, w: np.ndarray) -> np.ndarray:
+    moved = np.einsum("bij,bnj->bni", T[:, :3, :3], src) + T[:, None, :3, 3]
+    return (w * ((moved - dst) ** 2).sum(-1)).sum(-1)
+
+
+def _object_points(rng, b: int, n: int) -> np.ndarray:
+    """b point sets of n points: ~10 cm objects about 1 m from the origin (like a gripper in world coordinates)."""
+    return rng.normal(size=(b, 1, 3)) + rng.normal(size=(b, n, 3)) * 0.1
+
+
+def _soft_weights(rng, b: int, n: int, min_visible: int = 4) -> np.ndarray:
+    """Weights in [0.2, 2], about a quarter of them 0, never fewer than min_visible positive."""
+    w = rng.uniform(0.2, 2.0, size=(b, n)) * (rng.uniform(size=(b, n)) > 0.25)
+    w[:, :min_visible] = rng.uniform(0.2, 2.0, size=(b, min_visible))
+    return w
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_registration_recovers_random_rigid_transforms_from_noiseless_correspondences(method, dtype):
+    rng = np.random.default_rng(200)
+    b, n = 500, 16
+    T_true = _random_transforms(rng, b, 0.3)
+    src = _object_points(rng, b, n)
+    dst = np.einsum("bij,bnj->bni", T_true[:, :3, :3], src) + T_true[:, None, :3, 3]
+    w = _soft_weights(rng, b, n)
+    dst_in = np.where(w[..., None] > 0, dst, np.nan)  # points with weight 0 may hold anything
+    T, valid = weighted_rigid_registration(
+        torch.tensor(src, dtype=dtype),
+        torch.tensor(dst_in, dtype=dtype),
+        torch.tensor(w, dtype=dtype),
+        method=method,
+    )
+    assert valid.all()
+    assert_rigid(T, dtype)
+    T = T.double().numpy()
+    rot_tol, trans_tol = {torch.float64: (1e-12, 1e-12), torch.float32: (1e-5, 2e-5)}[dtype]
+    assert _rotation_angle_between(T[:, :3, :3], T_true[:, :3, :3]).max() < rot_tol
+    assert np.abs(T[:, :3, 3] - T_true[:, :3, 3]).max() < trans_tol
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_registration_with_noise_matches_float64_numpy_kabsch(method, dtype):
+    rng = np.random.default_rng(201)
+    b, n = 500, 16
+    T_true = _random_transforms(rng, b, 0.3)
+    src = _object_points(rng, b, n)
+    dst = np.einsum("bij,bnj->bni", T_true[:, :3, :3], src) + T_true[:, None, :3, 3]
+    dst = dst + rng.normal(size=dst.shape) * 0.01  # 1 cm on a 10 cm object
+    w = _soft_weights(rng, b, n)
+    src_t, dst_t, w_t = (torch.tensor(x, dtype=dtype) for x in (src, dst, w))
+    T, valid = weighted_rigid_registration(src_t, dst_t, w_t, method=method)
+    assert valid.all()
+    assert_rigid(T, dtype)
+    # the reference solves the same (rounded) inputs
+    src64, dst64, w64 = (x.double().numpy() for x in (src_t, dst_t, w_t))
+    ref = kabsch_np(src64, dst64, w64)
+    T = T.double().numpy()
+    tol = {torch.float64: 1e-12, torch.float32: 2e-5}[dtype]
+    np.testing.assert_allclose(T, ref, atol=tol)
+    # never worse than the reference optimum (relative to the residual)
+    cost, cost_ref = _cost(T, src64, dst64, w64), _cost(ref, src64, dst64, w64)
+    assert (cost <= cost_ref * (1 + {torch.float64: 1e-11, torch.float32: 5e-5}[dtype])).all()
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_registration_of_reflected_point_sets_returns_a_proper_rotation(method):
+    """dst = M src + t with M orthogonal, det M = -1 (+ noise): the best orthogonal map is the reflection M; the
+    result must still have det +1 and be the best proper rotation (the numpy reference's)."""
+    rng = np.random.default_rng(202)
+    b, n = 400, 12
+    src = _object_points(rng, b, n)
+    M = -Rotation.random(b, random_state=rng).as_matrix()  # improper: det -1
+    dst = np.einsum("bij,bnj->bni", M, src) + rng.normal(size=(b, 1, 3)) + rng.normal(size=(b, n, 3)) * 1e-3
+    w = _soft_weights(rng, b, n)
+    # it is a reflection case: the unconstrained orthogonal Procrustes solution has det -1
+    wn = w / w.sum(-1, keepdims=True)
+    xs = src - np.einsum("bn,bni->bi", wn, src)[:, None]
+    xd = dst - np.einsum("bn,bni->bi", wn, dst)[:, None]
+    U, _, Vt = np.linalg.svd(np.einsum("bn,bni,bnj->bij", wn, xs, xd))
+    assert (np.linalg.det(np.swapaxes(Vt, -1, -2) @ np.swapaxes(U, -1, -2)) < 0).all()
+    for dtype in DTYPES:
+        T, valid = weighted_rigid_registration(
+            torch.tensor(src, dtype=dtype),
+            torch.tensor(dst, dtype=dtype),
+            torch.tensor(w, dtype=dtype),
+            method=method,
+        )
+        assert valid.all()
+        assert_rigid(T, dtype)
+        ref = kabsch_np(src, dst, w)
+        cost, cost_ref = _cost(T.double().numpy(), src, dst, w), _cost(ref, src, dst, w)
+        assert (cost <= cost_ref * (1 + {torch.float64: 1e-11, torch.float32: 5e-5}[dtype])).all()
+
+    # coplanar points mirrored in a line of their plane: a rotation by pi maps them exactly (cost 0)
+    plane = rng.normal(size=(b, n, 2)) * 0.1
+    basis = Rotation.random(b, random_state=rng).as_matrix()
+    src_p = np.einsum("bij,bnj->bni", basis[:, :, :2], plane) + rng.normal(size=(b, 1, 3))
+    mirror = np.einsum("bij,jk,blk->bil", basis, np.diag([-1.0, 1, 1]), basis)  # flips the plane's first axis
+    dst_p = np.einsum("bij,bnj->bni", mirror, src_p)
+    T, valid = weighted_rigid_registration(
+        torch.tensor(src_p), torch.tensor(dst_p), torch.tensor(w), method=method
+    )
+    assert valid.all()
+    assert_rigid(T, torch.float64)
+    moved = transform_points(T, torch.tensor(src_p)).numpy()
+    assert np.abs(moved - dst_p).max() < 1e-12
+
+
+# ------------------------------------------------------------------------ degenerate point sets
+
+N_DEGENERATE = 12  # points per set
+K_EACH = 40  # random cases of each kind in the batch
+KINDS = [
+    "healthy",
+    "all_equal",  # every weighted src point and every dst point is one point
+    "dst_collapsed",  # spread src, every dst point is one point
+    "collinear",
+    "coplanar",
+    "three_visible",
+    "zero_visible",
+    "one_visible",
+    "two_visible",
+    "zero_weights_nan_points",  # zero, negative and NaN weights on non-finite points
+    "healthy_2",
+]
+
+
+def _degenerate_batch(rng):
+    """K_EACH random cases of every kind, interleaved in one batch, and the known transform for each."""
+    # interleaved: each kind has neighbours of every other kind
+    kinds = np.tile(np.arange(len(KINDS)), K_EACH)
+    b, n = len(kinds), N_DEGENERATE
+    T_true = _random_transforms(rng, b, 0.3)
+    src = _object_points(rng, b, n)
+    w = rng.uniform(0.2, 2.0, size=(b, n))
+    name = np.array(KINDS)[kinds]
+    centre = rng.normal(size=(b, 1, 3))
+    line = _unit(rng, b)[:, None, :] * rng.normal(size=(b, n, 1)) * 0.1 + centre
+    plane_axes = Rotation.random(b, random_state=rng).as_matrix()[:, :, :2]
+    plane = np.einsum("bij,bnj->bni", plane_axes, rng.normal(size=(b, n, 2)) * 0.1) + centre
+    src = np.where((name == "all_equal")[:, None, None], centre, src)
+    src = np.where((name == "collinear")[:, None, None], line, src)
+    src = np.where((name == "coplanar")[:, None, None], plane, src)
+    dst = np.einsum("bij,bnj->bni", T_true[:, :3, :3], src) + T_true[:, None, :3, 3]
+    dst = np.where((name == "dst_collapsed")[:, None, None], rng.normal(size=(b, 1, 3)), dst)
+    n_visible = {"three_visible": 3, "zero_visible": 0, "one_visible": 1, "two_visible": 2}
+    for kind, k in n_visible.items():
+        w[name == kind, k:] = 0
+    bad = name == "zero_weights_nan_points"
+    w[bad] = np.array([0.0, -1.0, np.nan, -np.inf])[np.arange(n) % 4]
+    src[bad, ::2] = np.nan
+    dst[bad, 1::2] = np.inf
+    return name, T_true, src, dst, w
+
+
+def _expected_valid(name):
+    return ~np.isin(name, ["zero_visible", "one_visible", "two_visible", "zero_weights_nan_points"])
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_registration_degenerate_point_sets_are_finite_rigid_and_follow_the_documented_fallback(
+    method, dtype
+):
+    rng = np.random.default_rng(300)
+    name, T_true, src, dst, w = _degenerate_batch(rng)
+    src_t, dst_t, w_t = (torch.tensor(x, dtype=dtype) for x in (src, dst, w))
+    T, valid = weighted_rigid_registration(src_t, dst_t, w_t, method=method)
+    assert_rigid(T, dtype)
+    np.testing.assert_array_equal(valid.numpy(), _expected_valid(name))
+    # fewer than 3 points with weight > 0: the identity
+    eye = torch.eye(4, dtype=dtype)
+    assert torch.equal(T[~valid], eye.expand(int((~valid).sum()), 4, 4))
+
+    T64 = T.double().numpy()
+    src64, dst64 = src_t.double().numpy(), dst_t.double().numpy()
+    atol = {torch.float64: 1e-12, torch.float32: 5e-5}[dtype]
+    # healthy, coplanar (>= 3 non-collinear points) and 3 visible points: the true transform
+    exact = np.isin(name, ["healthy", "healthy_2", "coplanar", "three_visible"])
+    np.testing.assert_allclose(T64[exact], T_true[exact], atol=atol)
+    # collinear: any rotation about the line is optimal; the line maps onto its image
+    col = name == "collinear"
+    moved = np.einsum("bij,bnj->bni", T64[col, :3, :3], src64[col]) + T64[col, None, :3, 3]
+    np.testing.assert_allclose(moved, dst64[col], atol=atol)
+    # one point (all src equal, or all dst equal): the rotation is not determined; the documented fallback is a
+    # pure translation from the weighted src centroid to the weighted dst centroid
+    single = np.isin(name, ["all_equal", "dst_collapsed"])
+    np.testing.assert_allclose(T64[single, :3, :3], np.broadcast_to(np.eye(3), (single.sum(), 3, 3)), atol=0)
+    wn = w[single] / w[single].sum(-1, keepdims=True)
+    shift = np.einsum("bn,bni->bi", wn, dst64[single] - src64[single])
+    np.testing.assert_allclose(T64[single, :3, 3], shift, atol=atol)
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("dtype", DTYPES, ids=str)
+def test_registration_degenerate_elements_do_not_change_healthy_ones(method, dtype):
+    rng = np.random.default_rng(301)
+    name, _, src, dst, w = _degenerate_batch(rng)
+    src_t, dst_t, w_t = (torch.tensor(x, dtype=dtype) for x in (src, dst, w))
+    T_mixed, _ = weighted_rigid_registration(src_t, dst_t, w_t, method=method)
+    healthy = torch.tensor(np.isin(name, ["healthy", "healthy_2"]))
+    T_alone, valid_alone = weighted_rigid_registration(
+        src_t[healthy], dst_t[healthy], w_t[healthy], method=method
+    )
+    assert valid_alone.all()
+    tol = {torch.float64: 1e-12, torch.float32: 1e-6}[dtype]
+    torch.testing.assert_close(T_mixed[healthy], T_alone, atol=tol, rtol=0)
