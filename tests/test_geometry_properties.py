@@ -32,6 +32,7 @@ from lerobot_rnd.geometry import (
     transform_points,
     weighted_rigid_registration,
 )
+from lerobot_rnd.sampler import register_point_update
 
 DTYPES = [torch.float64, torch.float32]
 METHODS = ["svd", "horn"]
@@ -501,3 +502,141 @@ def test_registration_degenerate_elements_do_not_change_healthy_ones(method, dty
     assert valid_alone.all()
     tol = {torch.float64: 1e-12, torch.float32: 1e-6}[dtype]
     torch.testing.assert_close(T_mixed[healthy], T_alone, atol=tol, rtol=0)
+
+
+# ------------------------------------------------------------------------ the sampler's point update
+
+
+def _point_update_case(rng, min_points: int):
+    """register_point_update inputs with one sample per case kind (B = 16 cases, T = 8 horizon steps, C = 2 cameras)
+    and the expected valid flags.
+
+    Horizon steps: 0 healthy, 1 no pixel visible, 2 one, 3 two, 4 min_points - 1 (>= 3), 5 every visible pixel of
+    both cameras at one world point (float32 camera coordinates), 6 collinear, 7 healthy.
+    """
+    b, t, c, n = 16, 8, 2, 10
+    T_world_cam = np.stack([_random_transforms(rng, c, 1.0) for _ in range(b)])[:, None].repeat(t, 1)
+    T_delta = np.stack([_random_transforms(rng, t, 0.05) for _ in range(b)])
+    world = _object_points(rng, b * t * c, n).reshape(b, t, c, n, 3)
+    world[:, 5] = rng.normal(size=(b, 1, 1, 3))
+    direction = _unit(rng, b)[:, None, None, :]
+    world[:, 6] = world[:, 6, :1, :1] + direction * rng.normal(size=(b, c, n, 1)) * 0.1
+    moved = np.einsum("btij,btcnj->btcni", T_delta[..., :3, :3], world) + T_delta[:, :, None, None, :3, 3]
+    cam_from_world = np.linalg.inv(T_world_cam)
+
+    def to_cam(p):
+        q = np.einsum("btcij,btcnj->btcni", cam_from_world[..., :3, :3], p) + cam_from_world[..., None, :3, 3]
+        return torch.tensor(np.swapaxes(q, -1, -2), dtype=torch.float32)  # (B, T, C, 3, N)
+
+    mask = np.zeros((b, t, c, n), dtype=bool)
+    mask[:, [0, 5, 6, 7]] = rng.uniform(size=(b, 4, c, n)) > 0.3
+    mask[:, [0, 5, 6, 7], 0, :2] = True
+    mask[:, 2, 1, 3] = True
+    mask[:, 3, 0, 4] = mask[:, 3, 1, 7] = True
+    mask[:, 4, 0, : min_points - 1] = True
+    expected_valid = np.ones((b, t), dtype=bool)
+    expected_valid[:, 1:5] = False
+    return (
+        to_cam(world),
+        to_cam(moved),
+        torch.tensor(mask),
+        torch.tensor(T_world_cam, dtype=torch.float32),
+        T_delta,
+        expected_valid,
+    )
+
+
+def test_register_point_update_degenerate_steps_fall_back_and_do_not_change_healthy_steps():
+    rng = np.random.default_rng(400)
+    min_points = 5
+    p_k, p_prev, mask, T_world_cam, T_delta, expected_valid = _point_update_case(rng, min_points)
+    T, valid = register_point_update(p_k, p_prev, mask, T_world_cam, min_points)
+    assert T.shape == (16, 8, 4, 4) and T.dtype == torch.float32
+    assert_rigid(T, torch.float32)
+    np.testing.assert_array_equal(valid.numpy(), expected_valid)
+    # where valid is False (fewer than min_points visible pixels): the identity, whatever the pixels say
+    assert torch.equal(T[~valid], torch.eye(4).expand(int((~valid).sum()), 4, 4))
+    # healthy steps: the true motion (float32 camera coordinates of points ~1 m from the origin)
+    for step in (0, 7):
+        np.testing.assert_allclose(T[:, step].double().numpy(), T_delta[:, step], atol=5e-6)
+    # all visible pixels at one world point: translation only
+    np.testing.assert_allclose(T[:, 5, :3, :3].numpy(), np.broadcast_to(np.eye(3), (16, 3, 3)), atol=0)
+    np.testing.assert_allclose(
+        T[:, 5, :3, 3].double().numpy(),
+        np.einsum("bij,bj->bi", T_delta[:, 5, :3, :3] - np.eye(3), _world_point(p_k, T_world_cam))
+        + T_delta[:, 5, :3, 3],
+        atol=5e-6,
+    )
+    # collinear: the line maps onto its moved image
+    world_k = _world_points(p_k[:, 6], T_world_cam[:, 6])
+    world_prev = _world_points(p_prev[:, 6], T_world_cam[:, 6])
+    moved = torch.einsum("bij,bnj->bni", T[:, 6, :3, :3].double(), world_k) + T[:, 6, None, :3, 3].double()
+    np.testing.assert_allclose(moved.numpy(), world_prev.numpy(), atol=5e-6)
+    # a healthy step alone gives the same transform as in the mixed batch
+    keep = [0, 7]
+    T_alone, valid_alone = register_point_update(
+        p_k[:, keep], p_prev[:, keep], mask[:, keep], T_world_cam[:, keep], min_points
+    )
+    assert valid_alone.all()
+    torch.testing.assert_close(T_alone, T[:, keep], atol=1e-7, rtol=0)
+
+
+def _world_points(p_cam, T_world_cam):
+    """(B, C, 3, N) camera points, (B, C, 4, 4) -> (B, C * N, 3) float64 world points."""
+    T = T_world_cam.double()
+    w = torch.einsum("bcij,bcjn->bcni", T[..., :3, :3], p_cam.double()) + T[..., None, :3, 3]
+    return w.flatten(1, 2)
+
+
+def _world_point(p_k, T_world_cam):
+    """The single world point of horizon step 5 (first pixel of camera 0), float64 numpy (B, 3)."""
+    return _world_points(p_k[:, 5], T_world_cam[:, 5])[:, 0].numpy()
+
+
+class _GarbageDisplacementNetwork(torch.nn.Module):
+    """Predicts a large random displacement and a fixed action update (the denoiser's interface)."""
+
+    def __init__(self, update: torch.Tensor):
+        super().__init__()
+        self.update = update
+
+    def forward(
+        self,
+        obs_rgb,
+        obs_points,
+        future_rgb,
+        future_points,
+        gripper_state,
+        timestep,
+        noisy_action,
+        patch_index=None,
+    ):
+        displacement = 10 * torch.randn(future_points.shape, generator=torch.Generator().manual_seed(0))
+        return displacement, self.update, torch.ones(noisy_action.shape[:2])
+
+
+def test_sampler_step_falls_back_to_the_action_space_below_min_visible_points(toy_dataset_root):
+    """Where fewer than `min_visible_points` rendered pixels are predicted (here: never enough), the sampler step
+    is the action-space DDIM step with x0 = a + update, whatever the image space predicts."""
+    from lerobot_rnd.sampler import ddim_step
+    from tests.helpers import make_policy
+
+    policy, _ = make_policy(toy_dataset_root, variant="AI", point_update="x0", min_visible_points=10**9)
+    model = policy.model
+    b = 3
+    state = torch.tensor([[0.02, -0.03, 0.21, 1.0], [-0.04, 0.02, 0.18, 1.0], [0.0, 0.05, 0.2, 1.0]])
+    images = torch.rand(b, 2, len(model.camera_keys), 3, 64, 64, generator=torch.Generator().manual_seed(1))
+    images, T_world_ee, gripper = model.prepare_observation(images, state[:, None].expand(b, 2, 4))
+    gen = torch.Generator().manual_seed(2)
+    a = (0.5 * torch.randn(b, 4, 6, generator=gen)).clamp(-1, 1)
+    update = 0.3 * torch.randn(b, 4, 6, generator=gen)
+    model.network = _GarbageDisplacementNetwork(update)
+    with torch.no_grad(), pytest.warns(UserWarning, match="visible in none of the cameras"):
+        a_next, _, composite = model.sampler_step(images, T_world_ee, gripper, a, 1, full_composite=True)
+    n_obs = model.config.n_obs_steps
+    assert (composite[:, n_obs:] != images[:, -1:]).any(), "the gripper must be rendered for this test"
+    expected = ddim_step(
+        a, (a + update).clamp(-1, 1), model.inference_alpha_bar[1], model.inference_alpha_bar_prev[1]
+    )
+    assert torch.isfinite(a_next).all()
+    torch.testing.assert_close(a_next, expected, atol=1e-6, rtol=0)
