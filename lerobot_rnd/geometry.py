@@ -223,12 +223,15 @@ def se3_log(T: Tensor) -> Tensor:
 def rotation_6d_to_matrix(d6: Tensor) -> Tensor:
     """6-D rotation (...,6) = [column 0 (3), column 1 (3)] (Zhou et al. 2019) -> R (...,3,3).
 
-    Gram-Schmidt: b1 = a1/|a1|, b2 = normalised a2 minus its b1 part, b3 = b1 x b2.
+    Gram-Schmidt: b1 = a1/|a1|, b2 = normalised a2 minus its b1 part, b3 = b1 x b2. The b1 part is removed
+    twice, so b2 stays orthogonal to b1 (to rounding) even when a2 is nearly parallel to a1; a1 = 0 or a2
+    exactly parallel to a1 define no rotation (the result may then not be one).
     """
     a1, a2 = d6[..., :3], d6[..., 3:]
     eps = torch.finfo(d6.dtype).tiny
     b1 = a1 / a1.norm(dim=-1, keepdim=True).clamp_min(eps)
-    a2 = a2 - (b1 * a2).sum(-1, keepdim=True) * b1
+    for _ in range(2):  # one pass leaves a b1 part of ~eps |a2| / |a2 - b1 part|: large for near-parallel a2
+        a2 = a2 - (b1 * a2).sum(-1, keepdim=True) * b1
     b2 = a2 / a2.norm(dim=-1, keepdim=True).clamp_min(eps)
     b3 = torch.linalg.cross(b1, b2, dim=-1)
     return torch.stack([b1, b2, b3], -1)
@@ -364,14 +367,25 @@ def weighted_rigid_registration(
     weights: Tensor,
     method: str = "auto",
     jacobi_sweeps: int = 8,
+    point_tol: Tensor | float | None = None,
 ) -> tuple[Tensor, Tensor]:
     """Weighted least-squares rigid transform: argmin_T sum_i w_i |T src_i - dst_i|^2.
 
     src, dst: (...,N,3) corresponding points (frames: src in ``src``, dst in ``dst``);
     weights: (...,N) >= 0 (0 = ignored; masked sets of different sizes solve in one call;
-    points with weight 0 may hold any finite or non-finite values).
+    points with weight 0 may hold any finite or non-finite values; negative or non-finite
+    weights count as 0).
     Returns T_dst_src (...,4,4) (proper rotation, det +1) and valid (...) bool = at least
     3 points with weight > 0. Invalid entries return the identity. Never NaN.
+
+    Degenerate sets (valid, each batch element solved on its own):
+    - one point: if the weighted points of src, or those of dst, have a weighted RMS spread about
+      their centroid of at most ``point_tol`` (...) (default: 32 eps of the dtype times their RMS
+      distance from the origin, i.e. they differ only by rounding), every rotation is optimal and the
+      rotation is the identity: T is the translation from the src centroid to the dst centroid;
+    - collinear: the rotation about the line is not determined by the data; one optimal one is returned;
+    - coplanar (3 or more non-collinear points): the unique solution.
+    When the best orthogonal map is a reflection, the best proper rotation is returned.
 
     method: "svd" = weighted Kabsch/Arun (SVD of the 3x3 cross-covariance, reflection fixed
     by the determinant sign; torch.linalg.svd synchronises with the host on CUDA);
@@ -394,6 +408,16 @@ def weighted_rigid_registration(
     mu_d = (wn[..., None] * dst).sum(-2)
     xs = src - mu_s[..., None, :]
     xd = dst - mu_d[..., None, :]
+    # One point (spread at the rounding level): H would hold only rounding noise and give an arbitrary rotation.
+    spread_s = (wn * xs.square().sum(-1)).sum(-1).sqrt()
+    spread_d = (wn * xd.square().sum(-1)).sum(-1).sqrt()
+    if point_tol is None:
+        rel = 32 * torch.finfo(dtype).eps
+        tol_s = rel * (wn * src.square().sum(-1)).sum(-1).sqrt()
+        tol_d = rel * (wn * dst.square().sum(-1)).sum(-1).sqrt()
+    else:
+        tol_s = tol_d = torch.as_tensor(point_tol, dtype=dtype, device=src.device)
+    one_point = (spread_s <= tol_s) | (spread_d <= tol_d)
     # scale-normalise for conditioning (rotation is scale invariant)
     H = (xs * wn[..., None]).transpose(-1, -2) @ xd  # (...,3,3) = sum w xs xd^T
     scale = H.abs().amax(dim=(-1, -2), keepdim=True)
@@ -428,6 +452,7 @@ def weighted_rigid_registration(
     else:
         raise ValueError(f"unknown method {method!r}")
 
+    R = torch.where(one_point[..., None, None], torch.eye(3, dtype=dtype, device=src.device), R)
     t = mu_d - (R @ mu_s[..., None])[..., 0]
     T = make_transform(R, t)
     eye = torch.eye(4, dtype=dtype, device=src.device).expand(T.shape)

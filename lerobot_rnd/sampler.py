@@ -89,8 +89,11 @@ def register_point_update(
     points_k_cam, points_prev_cam: (B, T, C, 3, *pixels) camera-frame points (pixels: (H, W) or (N,));
     mask: (B, T, C, *pixels) bool;
     T_world_cam: (B, T, C, 4, 4). Returns (T_world_delta (B, T, 4, 4), valid (B, T) bool); valid is False
-    where fewer than `min_points` pixels are visible over all cameras. Solved in float64 (world coordinates
-    of a metre or more would otherwise cost about 1e-6 m of float32 precision); returned in the input dtype.
+    where fewer than `min_points` pixels are visible over all cameras, and T_world_delta is then the identity
+    (the caller falls back to the action space). Solved in float64 (world coordinates of a metre or more would
+    otherwise cost about 1e-6 m of float32 precision); returned in the input dtype. Degenerate point sets
+    follow `weighted_rigid_registration`; visible points that differ only by the input dtype's rounding (in
+    camera or world coordinates) count as one point: translation only.
     """
     b, t, c = mask.shape[:3]
     dtype = points_k_cam.dtype
@@ -104,6 +107,22 @@ def register_point_update(
         return world.reshape(b, t, -1, 3)  # (B, T, C*HW, 3)
 
     weights = mask.reshape(b, t, -1).to(points_k_cam.dtype)
-    T_world_delta, valid = weighted_rigid_registration(to_world(points_k_cam), to_world(points_prev_cam), weights)
+    world_k, world_prev = to_world(points_k_cam), to_world(points_prev_cam)
+
+    def max_norm(points: Tensor) -> Tensor:  # (B, T, C*N, 3) -> (B, T): largest |p| over the visible pixels
+        return torch.where(weights > 0, points.norm(dim=-1), 0.0).amax(-1)
+
+    def cam(points: Tensor) -> Tensor:
+        return points.flatten(4).transpose(-1, -2).reshape(b, t, -1, 3)
+
+    # the inputs hold `dtype`'s rounding in camera coordinates, and in world coordinates through T_world_cam
+    scale = torch.maximum(max_norm(cam(points_k_cam)), max_norm(cam(points_prev_cam))) + torch.maximum(
+        max_norm(world_k), max_norm(world_prev)
+    )
+    T_world_delta, valid = weighted_rigid_registration(
+        world_k, world_prev, weights, point_tol=32 * torch.finfo(dtype).eps * scale
+    )
     valid = valid & (weights.sum(-1) >= min_points)
+    eye = torch.eye(4, dtype=T_world_delta.dtype, device=T_world_delta.device)
+    T_world_delta = torch.where(valid[..., None, None], T_world_delta, eye)
     return T_world_delta.to(dtype), valid
