@@ -153,6 +153,18 @@ def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tup
     return (max(0.0, centre - half), min(1.0, centre + half))
 
 
+def git_commit() -> str | None:
+    """The repository's commit (with "+dirty" when lerobot_rnd/ or benchmarks/ have local changes), or None."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO_ROOT, capture_output=True,
+                              text=True, check=True, timeout=10).stdout.strip()  # fmt: skip
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "lerobot_rnd", "benchmarks/run_benchmark.py"],
+                               cwd=REPO_ROOT, capture_output=True, text=True, check=True, timeout=10).stdout  # fmt: skip
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if dirty.strip() else "")
+
+
 # --------------------------------------------------------------------------------------------------
 # subprocesses
 # --------------------------------------------------------------------------------------------------
@@ -702,7 +714,7 @@ class Benchmark:
             self.failed = True
             return
         st.update(method=method, task=task, demos=n, seed=seed, protocol=a.protocol, scale=a.scale,
-                  status="running")  # fmt: skip
+                  status="running", code_commit=st.get("code_commit") or git_commit())  # fmt: skip
         print(f"=== {method} / {task} / {n} demos / seed {seed}", flush=True)
         try:
             if not a.eval_only:
