@@ -1,7 +1,9 @@
 """The recorder (``lerobot_rnd.sim.record``) under bad input: one test per row of docs/FAILURES.md, "Recorder".
 
 Bad flags and dataset folders stop it with one line ``error: ...`` (exit code 2) that names the flag and
-the fix, before anything is written.
+the fix, before anything is written. A stopped recording resumes to the episodes asked for: the SIGKILL
+rows resume copies of the dataset folder taken at the moment of the kill (what the killed process would
+have left on disk), while the recording runs in-process.
 """
 
 import json
@@ -214,3 +216,43 @@ def test_resume_with_episodes_below_the_total_records_nothing(two_episodes, caps
     summary = json.loads(out)
     assert summary["episodes"] == 2 and summary["new_frames"] == 0
     assert folder_state(two_episodes) == before
+
+
+# id: (folder, loadable before the resume: episodes or None, --episodes of the resume)
+STOPS = {
+    "keyboardinterrupt-in-episode-3": ("interrupted", 2, 3),
+    "sigkill-in-episode-3": ("killed-in-episode-3", 2, 3),
+    "sigkill-while-saving-episode-2": ("killed-saving-episode-2", None, 3),
+    "sigkill-while-saving-episode-1": ("killed-saving-episode-1", None, 1),
+}
+
+
+@needs_gl
+@pytest.mark.parametrize("case", list(STOPS), ids=list(STOPS))
+def test_resume_after_a_stop_keeps_only_whole_episodes(stopped, tmp_path, case):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    folder, loadable, episodes = STOPS[case]
+    root = tmp_path / folder
+    shutil.copytree(stopped / folder, root)
+    if loadable is not None:  # the stop left a dataset of the saved episodes, without resume
+        assert LeRobotDataset(REPO_ID, root=root).num_episodes == loadable
+    assert rec.main(cli(root, "--task", "reach-v3", "--episodes", str(episodes), "--resume")) == 0
+
+    ds = LeRobotDataset(REPO_ID, root=root)
+    assert ds.num_episodes == episodes
+    eps = ds.meta.episodes
+    assert list(eps["episode_index"]) == list(range(episodes))
+    ends = list(eps["dataset_to_index"])
+    assert list(eps["dataset_from_index"]) == [0, *ends[:-1]] and ends[-1] == ds.num_frames
+    assert [int(i) for i in ds.hf_dataset["index"]] == list(range(ds.num_frames))
+    lengths = [b - a for a, b in zip([0, *ends[:-1]], ends, strict=True)]
+    per_frame = [e for e, n in enumerate(lengths) for _ in range(n)]
+    assert [int(i) for i in ds.hf_dataset["episode_index"]] == per_frame
+    stats = json.loads((root / "meta" / "stats.json").read_text())
+    assert stats["action"]["count"] == [ds.num_frames]  # the lost episode is not in the statistics
+    assert ds[ds.num_frames - 1]["observation.images.corner2"].shape == (3, 32, 32)
+    assert not (root / "images").exists()
+    # the lost episode was recorded again from its placement: the placements of an uninterrupted run
+    attempts = json.loads((root / rec.RECORDING_FILE).read_text())["attempts"]
+    assert [(a["placement_index"], a["episode_index"]) for a in attempts] == [(i, i) for i in range(episodes)]

@@ -18,8 +18,10 @@ draws them uniformly from the task's range (seeded); ``fps`` picks them by furth
 seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread). ``--list-tasks`` lists the
 tasks of both suites.
 
-Bad flags and dataset folders stop the CLI with one line ``error: ...`` (exit code 2) before anything is
-written.
+Each episode's parquet files are closed once it is saved, so a recorder that is stopped, even by SIGKILL,
+leaves a loadable dataset of its saved episodes; ``--resume`` removes whatever an unsaved episode left
+and records it again. Bad flags and dataset folders stop the CLI with one line ``error: ...`` (exit
+code 2) before anything is written.
 
 Written next to LeRobot's metadata:
     meta/rnd_embodiment.json  camera calibration, gripper meshes, state layout (docs/CALIBRATION.md)
@@ -390,8 +392,8 @@ def _flag_value(key: str, value) -> str:
 
 
 def _prepare_resume(s: RecordSettings, root: Path, features: dict) -> tuple[dict, int]:
-    """Check that ``root`` can be resumed with ``s``; returns the recording log and the number of saved
-    episodes."""
+    """Check that ``root`` can be resumed with ``s`` and drop what a stopped recorder left unsaved; returns
+    the recording log (without the attempts of unsaved episodes) and the number of saved episodes."""
     if not s.resume:
         raise DatasetExistsError(
             f"{root} exists: pass --resume to add episodes to it, or choose another --root"
@@ -417,9 +419,17 @@ def _prepare_resume(s: RecordSettings, root: Path, features: dict) -> tuple[dict
                 "or choose another --root"
             )
         log["settings"] = asdict(s)
-    info = json.loads(info_path.read_text())
-    _check_features(info["features"], features, root)
-    return log, info["total_episodes"]
+    _check_features(json.loads(info_path.read_text())["features"], features, root)
+    have = _discard_unsaved_episode(root)
+    attempts = log["attempts"]
+    unsaved = (
+        i for i, a in enumerate(attempts) if a.get("episode_index") is not None and a["episode_index"] >= have
+    )
+    cut = next(unsaved, None)
+    if cut is not None:
+        logger.warning(f"{root}: episode {attempts[cut]['episode_index']} was not saved; recording it again")
+        log["attempts"] = attempts[:cut]
+    return log, have
 
 
 def _check_features(have: dict, expected: dict, root: Path) -> None:
@@ -445,6 +455,81 @@ def _check_features(have: dict, expected: dict, root: Path) -> None:
             )
 
 
+def _discard_unsaved_episode(root: Path) -> int:
+    """Remove what a recorder stopped while saving an episode left behind; returns the number of saved episodes.
+
+    The recorder closes an episode's parquet files once it is saved (:func:`_close_episode_files`); one
+    stopped inside LeRobot's ``save_episode`` can leave parquet files without footer, a data file that no
+    episode refers to, and ``meta/info.json`` / ``stats.json`` counting the unsaved episode. Those files are
+    removed and the counts and statistics recomputed from ``meta/episodes``, as are the temporary PNGs of an
+    episode cut short (``images/``)."""
+    import pyarrow.parquet as pq
+    from lerobot.datasets.compute_stats import aggregate_stats
+    from lerobot.datasets.utils import cast_stats_to_numpy, unflatten_dict, write_stats
+
+    removed = []
+    if (root / "images").is_dir():
+        shutil.rmtree(root / "images")
+        removed.append("images/")
+    episode_files = sorted((root / "meta" / "episodes").glob("*/*.parquet"))
+    data_files = sorted((root / "data").glob("*/*.parquet"))
+    for p in episode_files + data_files:
+        try:
+            pq.read_metadata(p)
+        except Exception:  # noqa: BLE001 - any unreadable file is the unsaved episode's
+            p.unlink()
+            removed.append(str(p.relative_to(root)))
+    episodes = [row for p in episode_files if p.exists() for row in pq.read_table(p).to_pylist()]
+    info_path = root / "meta" / "info.json"
+    info = json.loads(info_path.read_text())
+    referenced = {
+        root / info["data_path"].format(chunk_index=e["data/chunk_index"], file_index=e["data/file_index"])
+        for e in episodes
+    }
+    for p in data_files:
+        if p.exists() and p not in referenced:
+            p.unlink()
+            removed.append(str(p.relative_to(root)))
+    n, frames = len(episodes), sum(e["length"] for e in episodes)
+    if (info["total_episodes"], info["total_frames"]) != (n, frames):
+        info.update(total_episodes=n, total_frames=frames, splits={"train": f"0:{n}"})
+        info_path.write_text(json.dumps(info, indent=4))
+        if n:
+            stats = [cast_stats_to_numpy(unflatten_dict({k.removeprefix("stats/"): v for k, v in e.items()
+                                                         if k.startswith("stats/")})) for e in episodes]  # fmt: skip
+            write_stats(aggregate_stats(stats), root)
+        else:
+            (root / "meta" / "stats.json").unlink(missing_ok=True)
+        removed.append("the unsaved episode from meta/info.json and meta/stats.json")
+    if removed:
+        logger.warning(f"{root}: removed what an unsaved episode left: {', '.join(removed)}")
+    return n
+
+
+def _close_episode_files(dataset) -> None:
+    """Close the parquet files of the episode just saved (LeRobot keeps them open, without footer, until
+    ``finalize``), so that a killed recorder leaves a loadable dataset. The next episode then goes to new
+    files, as after a resume: each episode has its own data and meta/episodes file."""
+    import datasets
+    from lerobot.datasets.utils import DEFAULT_EPISODES_PATH
+    from lerobot.utils.utils import SuppressProgressBars
+
+    dataset.finalize()
+    # what LeRobot reads when it resumes (meta.episodes), extended by the episode's row only: reloading all
+    # of meta/episodes would cost time in proportion to the episodes recorded, after every episode
+    latest = dataset.meta.latest_episode
+    path = dataset.root / DEFAULT_EPISODES_PATH.format(
+        chunk_index=latest["meta/episodes/chunk_index"][0], file_index=latest["meta/episodes/file_index"][0]
+    )
+    with SuppressProgressBars():
+        row = datasets.Dataset.from_parquet(str(path))
+    row = row.select_columns([k for k in row.column_names if not k.startswith("stats/")])
+    old = dataset.meta.episodes
+    dataset.meta.episodes = row if old is None else datasets.concatenate_datasets([old, row])
+    dataset.meta.latest_episode = None  # -> the next episode starts new files after meta.episodes[-1]
+    dataset.latest_episode = None
+
+
 # --------------------------------------------------------------------------------------------------
 # the recording loop
 # --------------------------------------------------------------------------------------------------
@@ -465,6 +550,9 @@ def _record(
     from tqdm import tqdm
 
     root = Path(s.root)
+    if root.exists() and have == 0:  # LeRobot cannot open a dataset without episodes
+        logger.warning(f"{root} holds no saved episode: recording it again")
+        shutil.rmtree(root)
     if root.exists():
         dataset = LeRobotDataset(s.repo_id, root=root)
     else:
@@ -490,15 +578,17 @@ def _record(
             placement = seq[next_index]
             frames, ok, steps = run_expert_episode(env, expert, placement, s.max_steps, s.extra_steps)
             attempts += 1
-            entry = {
+            log["attempts"].append({
                 "placement_index": next_index,
                 "placement": [float(v) for v in placement],
                 "success": bool(ok),
                 "steps_to_success": steps,
                 "num_frames": len(frames) if ok else 0,
                 "episode_index": have if ok else None,
-            }
+            })  # fmt: skip
             next_index += 1
+            # written before the episode is saved: a resume drops the entry if the episode was not
+            (root / RECORDING_FILE).write_text(json.dumps(log, indent=1))
             if ok:
                 for obs, action in frames:
                     frame = {f"observation.images.{c}": obs["pixels"][c] for c in s.cameras}
@@ -507,23 +597,22 @@ def _record(
                     frame["task"] = env.task_description
                     dataset.add_frame(frame)
                 dataset.save_episode()
+                _close_episode_files(dataset)
                 frames_written += len(frames)
                 have += 1
                 bar.update(1)
             else:
                 failures += 1
                 bar.set_postfix(failures=failures)
-            log["attempts"].append(entry)
-            (root / RECORDING_FILE).write_text(json.dumps(log, indent=1))
     finally:
         if dataset.image_writer is not None:
             dataset.stop_image_writer()
         dataset.finalize()
         bar.close()
         env.close()
-        images = root / "images"  # LeRobot's temporary PNG folders (emptied once embedded in parquet)
-        if images.is_dir() and not any(p.is_file() for p in images.rglob("*")):
-            shutil.rmtree(images, ignore_errors=True)
+        # LeRobot's temporary PNGs: a saved episode's are embedded in parquet and deleted, an unsaved one's
+        # are not kept
+        shutil.rmtree(root / "images", ignore_errors=True)
     elapsed = time.time() - t0
     summary = {
         "root": str(root),
