@@ -102,7 +102,8 @@ def patch_metaworld_for_mujoco() -> None:
     metaworld 3.0.0 writes an 11-number weld ``eq_data`` row; newer MuJoCo rows have 12 numbers and the
     assignment fails ("could not broadcast input array from shape (11,) into shape (12,)"). This
     writes the same 11 numbers into the first 11 entries and keeps MuJoCo's value for the rest.
-    Idempotent; also fixes LeRobot's own MetaWorld env once ``lerobot_rnd.sim`` is imported.
+    Idempotent. Applied when this package builds a MetaWorld env, not on import: LeRobot's own
+    ``--env.type=metaworld`` still fails with these versions (docs/CALIBRATION.md).
     """
     global _PATCHED
     if _PATCHED:

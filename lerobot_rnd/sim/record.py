@@ -8,14 +8,20 @@
 
 Suites: ``metaworld`` (default; ``lerobot_rnd.sim.metaworld_env``, MetaWorld V3 tasks, 80 fps, 4-D
 actions) and ``panda`` (``lerobot_rnd.sim.panda_env``: Franka Panda + Robotiq on gym-hil's assets, tasks
-lift-cube / push-block / press-button, 10 fps, 7-D actions; default cameras front,wrist and
+lift-cube / push-block / press-button / pick-place, 10 fps, 7-D actions; default cameras front,wrist and
 ``--max-steps`` 120).
 
 Only successful episodes are kept (failures are counted and reported). ``--episodes`` is the number of
 kept episodes the dataset should hold: with ``--resume`` recording continues where it stopped, with the
-next placements of the same deterministic sequence. Placements are MetaWorld ``rand_vec``s:
-``random`` draws them uniformly from the task's range (seeded); ``fps`` picks them by furthest point
-sampling over a seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread).
+next placements of the same deterministic sequence. Placements are MetaWorld ``rand_vec``s: ``random``
+draws them uniformly from the task's range (seeded); ``fps`` picks them by furthest point sampling over a
+seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread). ``--list-tasks`` lists the
+tasks of both suites.
+
+Each episode's parquet files are closed once it is saved, so a recorder that is stopped, even by SIGKILL,
+leaves a loadable dataset of its saved episodes; ``--resume`` removes whatever an unsaved episode left
+and records it again. Bad flags and dataset folders stop the CLI with one line ``error: ...`` (exit
+code 2) before anything is written.
 
 Written next to LeRobot's metadata:
     meta/rnd_embodiment.json  camera calibration, gripper meshes, state layout (docs/CALIBRATION.md)
@@ -30,10 +36,12 @@ from that observation: 4-D MetaWorld, 7-D Panda) and the task description. After
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import logging
 import shutil
 import sys
+import textwrap
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
@@ -47,8 +55,75 @@ logger = logging.getLogger(__name__)
 
 RECORDING_FILE = "meta/rnd_recording.json"
 SUITES = ("metaworld", "panda")
+SUITE_NAMES = {"metaworld": "MetaWorld V3", "panda": "Panda"}
 PANDA_DEFAULT_CAMERAS = ["front", "wrist"]
 PANDA_DEFAULT_MAX_STEPS = 120
+#: settings a resumed recording must share with the recording, and their flags
+RESUME_FLAGS = {
+    "suite": "--suite", "task": "--task", "cameras": "--cameras", "image_size": "--image-size",
+    "flip_cameras": "--flip-cameras", "lerobot_corner2_pos": "--metaworld-corner2-pos",
+    "state_layout": "--state-layout", "placements": "--placements", "seed": "--seed", "fps_pool": "--fps-pool",
+}  # fmt: skip
+
+
+# --------------------------------------------------------------------------------------------------
+# user errors
+# --------------------------------------------------------------------------------------------------
+class RecordUsageError(Exception):
+    """A bad flag or dataset folder: the CLI prints it as one line (``error: ...``, exit code 2)."""
+
+
+class SettingError(RecordUsageError, ValueError):
+    """A flag with a bad value, or one that differs from the recording resumed."""
+
+
+class DatasetExistsError(RecordUsageError, FileExistsError):
+    """``--root`` exists and ``--resume`` is not given."""
+
+
+class NotADatasetError(RecordUsageError, FileNotFoundError):
+    """``--root`` exists but holds no LeRobot dataset."""
+
+
+def suite_tasks(suite: str) -> tuple[str, ...]:
+    """The task names of a suite."""
+    if suite == "metaworld":
+        from lerobot_rnd.sim.metaworld_env import METAWORLD_V3_TASKS
+
+        return METAWORLD_V3_TASKS
+    if suite == "panda":
+        from lerobot_rnd.sim.panda_scene import PANDA_TASKS
+
+        return PANDA_TASKS
+    raise SettingError(f"unknown --suite {suite!r}; suites: {', '.join(SUITES)}")
+
+
+def check_task(suite: str, task: str) -> None:
+    """Raise a :class:`SettingError` naming the fix when ``task`` is not a task of ``suite``."""
+    tasks = suite_tasks(suite)
+    if (task.removeprefix("metaworld-") if suite == "metaworld" else task) in tasks:
+        return
+    other = next(o for o in SUITES if o != suite)
+    if task in suite_tasks(other):
+        fix = "add --suite panda" if other == "panda" else "drop --suite panda (MetaWorld is the default)"
+        raise SettingError(
+            f"--task {task} is a {SUITE_NAMES[other]} task, not a {SUITE_NAMES[suite]} one: {fix}"
+        )
+    close = difflib.get_close_matches(task, tasks, n=3, cutoff=0.6)
+    guess = f"did you mean {' or '.join(close)}? " if close else ""
+    listing = ", ".join(tasks) if len(tasks) <= 8 else "lerobot-rnd-record --list-tasks"
+    raise SettingError(f"--task {task} is not a {SUITE_NAMES[suite]} task; {guess}all tasks: {listing}")
+
+
+def task_listing() -> str:
+    """The tasks of every suite, as printed by ``--list-tasks``."""
+    out = []
+    for suite in SUITES:
+        flag = "default" if suite == "metaworld" else f"--suite {suite}"
+        out.append(f"{SUITE_NAMES[suite]} tasks ({flag}):")
+        out.append(textwrap.fill(" ".join(suite_tasks(suite)), width=100, initial_indent="  ",
+                                 subsequent_indent="  ", break_on_hyphens=False))  # fmt: skip
+    return "\n".join(out)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -178,125 +253,311 @@ def run_expert_episode(env, expert, placement: np.ndarray, max_steps: int, extra
     return frames, success_at is not None, success_at
 
 
-def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
-    """Record ``settings.episodes`` successful expert episodes of a MetaWorld task; returns a summary dict."""
-    from lerobot_rnd.sim.metaworld_experts import MetaWorldExpert
-    from lerobot_rnd.sim.metaworld_env import (
-        LEROBOT_CORNER2_POS,
-        MAX_PATH_LENGTH,
-        METAWORLD_FPS,
-        RnDMetaWorldEnv,
-    )
+def check_settings(settings: RecordSettings) -> RecordSettings:
+    """``settings`` checked (a :class:`SettingError` names the flag and the fix), with the suite's defaults
+    filled in (Panda: ``cameras`` left at the MetaWorld default means front, wrist)."""
+    from dataclasses import replace
 
     s = settings
-    if s.suite != "metaworld":
-        raise ValueError(f"record_metaworld needs suite 'metaworld', got {s.suite!r}")
-    if s.max_steps + s.extra_steps > MAX_PATH_LENGTH:
-        raise ValueError(f"max_steps + extra_steps must be <= {MAX_PATH_LENGTH}")
-    env = RnDMetaWorldEnv(
-        s.task,
-        camera_names=s.cameras,
-        observation_height=s.image_size,
-        observation_width=s.image_size,
-        flip_cameras=s.flip_cameras,
-        corner2_pos=LEROBOT_CORNER2_POS if s.lerobot_corner2_pos else None,
-        episode_length=s.max_steps + s.extra_steps,
-        terminate_on_success=False,
-        state_layout=s.state_layout,
-    )
-    expert = MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed)
-    return _record(
-        s, env, expert, fps=METAWORLD_FPS, robot_type="sawyer", action_names=None, progress=progress
-    )
+    check_task(s.suite, s.task)
+    if s.suite == "panda" and s.cameras == RecordSettings().cameras:
+        s = replace(s, cameras=list(PANDA_DEFAULT_CAMERAS))
+    if s.suite == "panda" and s.flip_cameras:
+        raise SettingError("--flip-cameras is not supported by the panda suite: drop it")
+    if s.episodes < 1:
+        raise SettingError(
+            f"--episodes is the total number of episodes wanted: it must be >= 1, got {s.episodes}"
+        )
+    if not s.cameras:
+        raise SettingError("--cameras is empty: name at least one camera")
+    if s.placements not in ("random", "fps"):
+        raise SettingError(f"--placements must be random or fps, got {s.placements!r}")
+    minimum = {"--image-size": (s.image_size, 1), "--max-steps": (s.max_steps, 1), "--extra-steps": (s.extra_steps, 0),
+               "--fps-pool": (s.fps_pool, 1), "--image-writer-threads": (s.image_writer_threads, 0),
+               "--max-attempts": (1 if s.max_attempts is None else s.max_attempts, 1)}  # fmt: skip
+    for flag, (value, low) in minimum.items():
+        if value < low:
+            raise SettingError(f"{flag} must be >= {low}, got {value}")
+    if s.suite == "metaworld":
+        from lerobot_rnd.sim.metaworld_env import MAX_PATH_LENGTH, STATE_LAYOUTS
+
+        if s.state_layout not in STATE_LAYOUTS:
+            raise SettingError(
+                f"--state-layout must be one of {', '.join(STATE_LAYOUTS)}, got {s.state_layout!r}"
+            )
+        if s.max_steps + s.extra_steps > MAX_PATH_LENGTH:
+            raise SettingError(
+                f"--max-steps + --extra-steps must be <= {MAX_PATH_LENGTH} (MetaWorld's episode limit), "
+                f"got {s.max_steps} + {s.extra_steps}"
+            )
+    return s
+
+
+def _state_action_names(s: RecordSettings) -> tuple[list[str], list[str]]:
+    if s.suite == "metaworld":
+        from lerobot_rnd.sim.metaworld_env import ACTION_NAMES, STATE_LAYOUTS
+
+        return list(STATE_LAYOUTS[s.state_layout]), list(ACTION_NAMES)
+    from lerobot_rnd.sim.panda_env import ACTION_NAMES, STATE_NAMES
+
+    return list(STATE_NAMES), list(ACTION_NAMES)
+
+
+def _metaworld_env(s: RecordSettings):
+    """The env and expert of a MetaWorld recording, with its dataset's fps and robot type."""
+    from lerobot_rnd.sim.metaworld_env import LEROBOT_CORNER2_POS, METAWORLD_FPS, RnDMetaWorldEnv
+    from lerobot_rnd.sim.metaworld_experts import MetaWorldExpert
+
+    try:
+        env = RnDMetaWorldEnv(
+            s.task,
+            camera_names=s.cameras,
+            observation_height=s.image_size,
+            observation_width=s.image_size,
+            flip_cameras=s.flip_cameras,
+            corner2_pos=LEROBOT_CORNER2_POS if s.lerobot_corner2_pos else None,
+            episode_length=s.max_steps + s.extra_steps,
+            terminate_on_success=False,
+            state_layout=s.state_layout,
+        )
+    except ValueError as e:  # the env's checks of its cameras (the other settings are checked before)
+        raise SettingError(f"{e} (check --cameras and --flip-cameras)") from e
+    return env, MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed), METAWORLD_FPS, "sawyer"
+
+
+def _panda_env(s: RecordSettings):
+    """The env and expert of a Panda recording (``lerobot_rnd.sim.panda_env``), with its dataset's fps and
+    robot type."""
+    from lerobot_rnd.sim.panda_env import RnDPandaEnv
+    from lerobot_rnd.sim.panda_experts import PandaExpert
+
+    try:
+        env = RnDPandaEnv(
+            s.task,
+            camera_names=s.cameras,
+            observation_height=s.image_size,
+            observation_width=s.image_size,
+            episode_length=s.max_steps + s.extra_steps,
+            terminate_on_success=False,
+        )
+    except ValueError as e:  # the env's checks of its cameras (the other settings are checked before)
+        raise SettingError(f"{e} (check --cameras)") from e
+    expert = PandaExpert(s.task, noise_std=s.noise_std, seed=s.seed)
+    return env, expert, env.metadata["render_fps"], "panda"
+
+
+def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
+    """:func:`record` for a MetaWorld task (``settings.suite`` "metaworld")."""
+    if settings.suite != "metaworld":
+        raise SettingError(f"record_metaworld needs suite 'metaworld', got {settings.suite!r}")
+    return record(settings, progress=progress)
 
 
 def record_panda(settings: RecordSettings, progress: bool = True) -> dict:
-    """Record ``settings.episodes`` successful expert episodes of a Panda task
-    (``lerobot_rnd.sim.panda_env``); returns a summary dict. ``cameras`` left at the MetaWorld default
-    means the Panda default (front, wrist)."""
-    from dataclasses import replace
-
-    from lerobot_rnd.sim.panda_env import ACTION_NAMES, PANDA_TASKS, RnDPandaEnv
-    from lerobot_rnd.sim.panda_experts import PandaExpert
-
-    s = settings
-    if s.suite != "panda":
-        raise ValueError(f"record_panda needs suite 'panda', got {s.suite!r}")
-    if s.task not in PANDA_TASKS:
-        raise ValueError(f"unknown Panda task {s.task!r}; tasks: {', '.join(PANDA_TASKS)}")
-    if s.cameras == RecordSettings().cameras:
-        s = replace(s, cameras=list(PANDA_DEFAULT_CAMERAS))
-    if s.flip_cameras:
-        raise ValueError("--flip-cameras is not supported by the panda suite")
-    env = RnDPandaEnv(
-        s.task,
-        camera_names=s.cameras,
-        observation_height=s.image_size,
-        observation_width=s.image_size,
-        episode_length=s.max_steps + s.extra_steps,
-        terminate_on_success=False,
-    )
-    expert = PandaExpert(s.task, noise_std=s.noise_std, seed=s.seed)
-    return _record(
-        s, env, expert, fps=env.metadata["render_fps"], robot_type="panda", action_names=ACTION_NAMES,
-        progress=progress,
-    )  # fmt: skip
+    """:func:`record` for a Panda task (``settings.suite`` "panda")."""
+    if settings.suite != "panda":
+        raise SettingError(f"record_panda needs suite 'panda', got {settings.suite!r}")
+    return record(settings, progress=progress)
 
 
 def record(settings: RecordSettings, progress: bool = True) -> dict:
-    """Record with the suite named in ``settings.suite`` ("metaworld" or "panda")."""
-    if settings.suite == "metaworld":
-        return record_metaworld(settings, progress=progress)
-    if settings.suite == "panda":
-        return record_panda(settings, progress=progress)
-    raise ValueError(f"unknown suite {settings.suite!r}; suites: {', '.join(SUITES)}")
+    """Record ``settings.episodes`` successful expert episodes with the suite named in ``settings.suite``
+    ("metaworld" or "panda"); returns a summary dict (with a ``message`` when there was nothing to record).
+
+    Bad settings and dataset folders raise a :class:`RecordUsageError` before anything is written."""
+    s = check_settings(settings)
+    state_names, action_names = _state_action_names(s)
+    features = dataset_features(s.cameras, (s.image_size, s.image_size), state_names, action_names)
+    root = Path(s.root)
+    log, have = {"settings": asdict(s), "attempts": []}, 0
+    if root.exists():
+        log, have = _prepare_resume(s, root, features)
+        if have >= s.episodes:
+            message = f"{root} already holds {have} episodes; --episodes is the total number wanted; nothing to record"
+            return {"root": str(root), "repo_id": s.repo_id, "episodes": have, "new_frames": 0, "attempts": 0,
+                    "failures": 0, "seconds": 0.0, "message": message}  # fmt: skip
+    env, expert, fps, robot_type = (_metaworld_env if s.suite == "metaworld" else _panda_env)(s)
+    return _record(s, env, expert, features, fps, robot_type, log, have, progress)
 
 
+# --------------------------------------------------------------------------------------------------
+# resuming
+# --------------------------------------------------------------------------------------------------
+def _flag_value(key: str, value) -> str:
+    if key == "lerobot_corner2_pos":
+        return "off" if value else "on"  # the flag keeps MetaWorld's position
+    if isinstance(value, list):
+        return ",".join(value) if value else "(none)"
+    return str(value)
+
+
+def _prepare_resume(s: RecordSettings, root: Path, features: dict) -> tuple[dict, int]:
+    """Check that ``root`` can be resumed with ``s`` and drop what a stopped recorder left unsaved; returns
+    the recording log (without the attempts of unsaved episodes) and the number of saved episodes."""
+    if not s.resume:
+        raise DatasetExistsError(
+            f"{root} exists: pass --resume to add episodes to it, or choose another --root"
+        )
+    info_path = root / "meta" / "info.json"
+    if not info_path.exists():
+        raise NotADatasetError(
+            f"{root} exists but holds no LeRobot dataset (meta/info.json missing): choose another --root"
+        )
+    log = {"settings": asdict(s), "attempts": []}
+    rec_path = root / RECORDING_FILE
+    if rec_path.exists():
+        log = json.loads(rec_path.read_text())
+        old = {k: log["settings"].get(k, "metaworld" if k == "suite" else None) for k in RESUME_FLAGS}
+        diff = [k for k in RESUME_FLAGS if old[k] != getattr(s, k)]
+        if diff:
+            what = ", ".join(
+                f"{RESUME_FLAGS[k]} {_flag_value(k, old[k])} (not {_flag_value(k, getattr(s, k))})"
+                for k in diff
+            )
+            raise SettingError(
+                f"--resume: {root} was recorded with {what}: resume with the recording's settings, "
+                "or choose another --root"
+            )
+        log["settings"] = asdict(s)
+    _check_features(json.loads(info_path.read_text())["features"], features, root)
+    have = _discard_unsaved_episode(root)
+    attempts = log["attempts"]
+    unsaved = (
+        i for i, a in enumerate(attempts) if a.get("episode_index") is not None and a["episode_index"] >= have
+    )
+    cut = next(unsaved, None)
+    if cut is not None:
+        logger.warning(f"{root}: episode {attempts[cut]['episode_index']} was not saved; recording it again")
+        log["attempts"] = attempts[:cut]
+    return log, have
+
+
+def _check_features(have: dict, expected: dict, root: Path) -> None:
+    """Raise a :class:`SettingError` naming the flag when the dataset's features differ from ``expected``."""
+
+    def cams(keys):
+        return ",".join(k.removeprefix("observation.images.") for k in keys)
+
+    have_cams = sorted(k for k, ft in have.items() if ft["dtype"] in ("image", "video"))
+    want_cams = sorted(k for k in expected if k.startswith("observation.images."))
+    if have_cams != want_cams:
+        raise SettingError(
+            f"--resume: {root} has cameras {cams(have_cams)}, not {cams(want_cams)}: pass --cameras "
+            f"{cams(have_cams)}, or choose another --root"
+        )
+    for k, ft in expected.items():
+        shape = tuple(have[k]["shape"]) if k in have else None
+        if shape != tuple(ft["shape"]):
+            flag = {"observation.state": "--state-layout", "action": "--suite"}.get(k, "--image-size")
+            raise SettingError(
+                f"--resume: {root} has {k} of shape {shape}, these settings give {tuple(ft['shape'])}: "
+                f"pass the recording's {flag}, or choose another --root"
+            )
+
+
+def _discard_unsaved_episode(root: Path) -> int:
+    """Remove what a recorder stopped while saving an episode left behind; returns the number of saved episodes.
+
+    The recorder closes an episode's parquet files once it is saved (:func:`_close_episode_files`); one
+    stopped inside LeRobot's ``save_episode`` can leave parquet files without footer, a data file that no
+    episode refers to, and ``meta/info.json`` / ``stats.json`` counting the unsaved episode. Those files are
+    removed and the counts and statistics recomputed from ``meta/episodes``, as are the temporary PNGs of an
+    episode cut short (``images/``)."""
+    import pyarrow.parquet as pq
+    from lerobot.datasets.compute_stats import aggregate_stats
+    from lerobot.datasets.utils import cast_stats_to_numpy, unflatten_dict, write_stats
+
+    removed = []
+    if (root / "images").is_dir():
+        shutil.rmtree(root / "images")
+        removed.append("images/")
+    episode_files = sorted((root / "meta" / "episodes").glob("*/*.parquet"))
+    data_files = sorted((root / "data").glob("*/*.parquet"))
+    for p in episode_files + data_files:
+        try:
+            pq.read_metadata(p)
+        except Exception:  # noqa: BLE001 - any unreadable file is the unsaved episode's
+            p.unlink()
+            removed.append(str(p.relative_to(root)))
+    episodes = [row for p in episode_files if p.exists() for row in pq.read_table(p).to_pylist()]
+    info_path = root / "meta" / "info.json"
+    info = json.loads(info_path.read_text())
+    referenced = {
+        root / info["data_path"].format(chunk_index=e["data/chunk_index"], file_index=e["data/file_index"])
+        for e in episodes
+    }
+    for p in data_files:
+        if p.exists() and p not in referenced:
+            p.unlink()
+            removed.append(str(p.relative_to(root)))
+    n, frames = len(episodes), sum(e["length"] for e in episodes)
+    if (info["total_episodes"], info["total_frames"]) != (n, frames):
+        info.update(total_episodes=n, total_frames=frames, splits={"train": f"0:{n}"})
+        info_path.write_text(json.dumps(info, indent=4))
+        if n:
+            stats = [cast_stats_to_numpy(unflatten_dict({k.removeprefix("stats/"): v for k, v in e.items()
+                                                         if k.startswith("stats/")})) for e in episodes]  # fmt: skip
+            write_stats(aggregate_stats(stats), root)
+        else:
+            (root / "meta" / "stats.json").unlink(missing_ok=True)
+        removed.append("the unsaved episode from meta/info.json and meta/stats.json")
+    if removed:
+        logger.warning(f"{root}: removed what an unsaved episode left: {', '.join(removed)}")
+    return n
+
+
+def _close_episode_files(dataset) -> None:
+    """Close the parquet files of the episode just saved (LeRobot keeps them open, without footer, until
+    ``finalize``), so that a killed recorder leaves a loadable dataset. The next episode then goes to new
+    files, as after a resume: each episode has its own data and meta/episodes file."""
+    import datasets
+    from lerobot.datasets.utils import DEFAULT_EPISODES_PATH
+    from lerobot.utils.utils import SuppressProgressBars
+
+    dataset.finalize()
+    # what LeRobot reads when it resumes (meta.episodes), extended by the episode's row only: reloading all
+    # of meta/episodes would cost time in proportion to the episodes recorded, after every episode
+    latest = dataset.meta.latest_episode
+    path = dataset.root / DEFAULT_EPISODES_PATH.format(
+        chunk_index=latest["meta/episodes/chunk_index"][0], file_index=latest["meta/episodes/file_index"][0]
+    )
+    with SuppressProgressBars():
+        row = datasets.Dataset.from_parquet(str(path))
+    row = row.select_columns([k for k in row.column_names if not k.startswith("stats/")])
+    old = dataset.meta.episodes
+    dataset.meta.episodes = row if old is None else datasets.concatenate_datasets([old, row])
+    dataset.meta.latest_episode = None  # -> the next episode starts new files after meta.episodes[-1]
+    dataset.latest_episode = None
+
+
+# --------------------------------------------------------------------------------------------------
+# the recording loop
+# --------------------------------------------------------------------------------------------------
 def _record(
-    s: RecordSettings, env, expert, *, fps: int, robot_type: str, action_names, progress: bool
+    s: RecordSettings,
+    env,
+    expert,
+    features: dict,
+    fps: int,
+    robot_type: str,
+    log: dict,
+    have: int,
+    progress: bool,
 ) -> dict:
-    """The recording loop shared by the suites (``env`` / ``expert`` built from ``s``)."""
+    """The recording loop shared by the suites (``env`` / ``expert`` built from ``s``; ``log`` and ``have``:
+    the recording log and saved episodes of a resumed dataset)."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
     from tqdm import tqdm
 
     root = Path(s.root)
-    record_keys = ("suite", "task", "cameras", "image_size", "flip_cameras", "lerobot_corner2_pos",
-                   "state_layout", "placements", "seed", "fps_pool")  # fmt: skip
-    key_defaults = {"suite": "metaworld"}  # recordings made before the key existed
-    log: dict = {"settings": asdict(s), "attempts": []}
+    if root.exists() and have == 0:  # LeRobot cannot open a dataset without episodes
+        logger.warning(f"{root} holds no saved episode: recording it again")
+        shutil.rmtree(root)
     if root.exists():
-        if not s.resume:
-            raise FileExistsError(
-                f"{root} exists: pass --resume to add episodes to it, or choose another --root"
-            )
-        if not (root / "meta" / "info.json").exists():
-            raise FileNotFoundError(f"{root} exists but holds no LeRobot dataset (meta/info.json missing)")
         dataset = LeRobotDataset(s.repo_id, root=root)
-        rec_path = root / RECORDING_FILE
-        if rec_path.exists():
-            log = json.loads(rec_path.read_text())
-            old = log["settings"]
-            diff = {
-                k: (old.get(k, key_defaults.get(k)), getattr(s, k))
-                for k in record_keys
-                if old.get(k, key_defaults.get(k)) != getattr(s, k)
-            }
-            if diff:
-                raise ValueError(f"--resume with settings that differ from the recording's: {diff}")
-            log["settings"] = asdict(s)
-        expected = dataset_features(s.cameras, (s.image_size, s.image_size), env.state_names, action_names)
-        for k, ft in expected.items():
-            have = dataset.meta.features.get(k)
-            if have is None or tuple(have["shape"]) != tuple(ft["shape"]):
-                raise ValueError(f"--resume: dataset feature {k} is {have}, expected {ft}")
     else:
         dataset = LeRobotDataset.create(
-            repo_id=s.repo_id,
-            fps=fps,
-            features=dataset_features(s.cameras, (s.image_size, s.image_size), env.state_names, action_names),
-            root=root,
-            robot_type=robot_type,
-            use_videos=False,
+            repo_id=s.repo_id, fps=fps, features=features, root=root, robot_type=robot_type, use_videos=False
         )
     env.embodiment().save_json(root / EMBODIMENT_FILE_IN_DATASET)
     if s.image_writer_threads > 0:
@@ -317,15 +578,17 @@ def _record(
             placement = seq[next_index]
             frames, ok, steps = run_expert_episode(env, expert, placement, s.max_steps, s.extra_steps)
             attempts += 1
-            entry = {
+            log["attempts"].append({
                 "placement_index": next_index,
                 "placement": [float(v) for v in placement],
                 "success": bool(ok),
                 "steps_to_success": steps,
                 "num_frames": len(frames) if ok else 0,
                 "episode_index": have if ok else None,
-            }
+            })  # fmt: skip
             next_index += 1
+            # written before the episode is saved: a resume drops the entry if the episode was not
+            (root / RECORDING_FILE).write_text(json.dumps(log, indent=1))
             if ok:
                 for obs, action in frames:
                     frame = {f"observation.images.{c}": obs["pixels"][c] for c in s.cameras}
@@ -334,23 +597,22 @@ def _record(
                     frame["task"] = env.task_description
                     dataset.add_frame(frame)
                 dataset.save_episode()
+                _close_episode_files(dataset)
                 frames_written += len(frames)
                 have += 1
                 bar.update(1)
             else:
                 failures += 1
                 bar.set_postfix(failures=failures)
-            log["attempts"].append(entry)
-            (root / RECORDING_FILE).write_text(json.dumps(log, indent=1))
     finally:
         if dataset.image_writer is not None:
             dataset.stop_image_writer()
         dataset.finalize()
         bar.close()
         env.close()
-        images = root / "images"  # LeRobot's temporary PNG folders (emptied once embedded in parquet)
-        if images.is_dir() and not any(p.is_file() for p in images.rglob("*")):
-            shutil.rmtree(images, ignore_errors=True)
+        # LeRobot's temporary PNGs: a saved episode's are embedded in parquet and deleted, an unsaved one's
+        # are not kept
+        shutil.rmtree(root / "images", ignore_errors=True)
     elapsed = time.time() - t0
     summary = {
         "root": str(root),
@@ -366,7 +628,8 @@ def _record(
     return summary
 
 
-def _parse(argv: Sequence[str] | None) -> RecordSettings:
+def _parse(argv: Sequence[str] | None) -> RecordSettings | None:
+    """The settings of the command line (None for ``--list-tasks``)."""
     p = argparse.ArgumentParser(
         prog="python -m lerobot_rnd.sim.record",
         description=__doc__,
@@ -377,11 +640,15 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings:
     p.add_argument(
         "--task", default=None, help="task: MetaWorld V3 (default reach-v3) or Panda (default lift-cube)"
     )
+    p.add_argument("--list-tasks", action="store_true", help="list the tasks of both suites and exit")
     p.add_argument(
-        "--episodes", type=int, default=d.episodes, help="successful episodes the dataset should hold"
+        "--episodes",
+        type=int,
+        default=d.episodes,
+        help="successful episodes the dataset should hold in total",
     )
-    p.add_argument("--root", required=True, help="dataset folder (must not exist unless --resume)")
-    p.add_argument("--repo-id", required=True, help="dataset repo id, e.g. local/mw_reach")
+    p.add_argument("--root", help="dataset folder (must not exist unless --resume); required")
+    p.add_argument("--repo-id", help="dataset repo id, e.g. local/mw_reach; required")
     p.add_argument("--placements", choices=["random", "fps"], default=d.placements)
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument(
@@ -418,6 +685,11 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings:
         "--image-writer-threads", type=int, default=d.image_writer_threads, help="PNG writer threads"
     )
     a = p.parse_args(argv)
+    if a.list_tasks:
+        return None
+    missing = [f for f, v in (("--root", a.root), ("--repo-id", a.repo_id)) if v is None]
+    if missing:
+        p.error(f"the following arguments are required: {', '.join(missing)}")
     split = lambda x: [c for c in (t.strip() for t in x.split(",")) if c]
     panda = a.suite == "panda"
     task = a.task or ("lift-cube" if panda else d.task)
@@ -435,9 +707,20 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The CLI: 0 when done (or nothing to record), 2 for a bad flag or dataset folder (``error: ...`` on
+    stderr; unexpected errors raise with their traceback)."""
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     settings = _parse(argv)
-    summary = record(settings)
+    if settings is None:
+        print(task_listing())
+        return 0
+    try:
+        summary = record(settings)
+    except RecordUsageError as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+    if "message" in summary:
+        print(summary["message"], file=sys.stderr)
     print(json.dumps(summary, indent=1))
     return 0
 
