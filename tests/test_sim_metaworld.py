@@ -175,8 +175,9 @@ def test_lerobot_env_config_and_make_env():
 def test_weld_patch_fixes_lerobot_metaworld():
     import metaworld
 
-    import lerobot_rnd.sim  # noqa: F401
+    from lerobot_rnd.sim.metaworld_env import patch_metaworld_for_mujoco
 
+    patch_metaworld_for_mujoco()  # what the rnd_mw env does before it builds MetaWorld (idempotent)
     mt1 = metaworld.MT1("reach-v3", seed=0)  # fails on MuJoCo >= 3.4 without the patch
     env = mt1.train_classes["reach-v3"]()
     env.set_task(mt1.train_tasks[0])
