@@ -25,8 +25,8 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO / "benchmarks"))
-from run_benchmark import wilson_interval  # noqa: E402
+sys.path.insert(0, str(REPO))
+from benchmarks.harness.reports import wilson_interval  # noqa: E402
 
 OUT_JSON = REPO / "benchmarks" / "results" / "ablation_cpu.json"
 WORK = REPO / "outputs" / "ablation"

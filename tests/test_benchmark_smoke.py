@@ -1,5 +1,6 @@
-"""benchmarks/run_benchmark.py: statistics and reports (fast), the commands it would run (fast, dry run), and
-the whole pipeline at smoke scale with a stop-and-resume (slow: minutes of training and MuJoCo evaluation)."""
+"""benchmarks/run_benchmark.py and its package benchmarks/harness/: statistics and reports (fast), the commands
+it would run (fast, dry run), and the whole pipeline at smoke scale with a stop-and-resume (slow: minutes of
+training and MuJoCo evaluation)."""
 
 from __future__ import annotations
 
@@ -12,28 +13,29 @@ from pathlib import Path
 
 import pytest
 
+from benchmarks.harness import cli, reports, scales
+from benchmarks.harness.runs import Benchmark
+
 REPO = Path(__file__).resolve().parents[1]
 SCRIPT = REPO / "benchmarks" / "run_benchmark.py"
 
 
-def _load():
+def test_the_entry_point_keeps_the_names_imported_from_it():
     spec = importlib.util.spec_from_file_location("run_benchmark", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["run_benchmark"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-rb = _load()
+    rb = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(rb)
+    assert rb.main is cli.main and rb.parse_args is cli.parse_args and rb.Benchmark is Benchmark
+    assert rb.wilson_interval is reports.wilson_interval and rb.METHODS is scales.METHODS
+    assert all(hasattr(rb, name) for name in rb.__all__)
 
 
 def test_wilson_interval():
-    assert math.isnan(rb.wilson_interval(0, 0)[0])
-    lo, hi = rb.wilson_interval(0, 2)
+    assert math.isnan(reports.wilson_interval(0, 0)[0])
+    lo, hi = reports.wilson_interval(0, 2)
     assert lo == 0.0 and hi == pytest.approx(0.6576, abs=1e-3)
-    lo, hi = rb.wilson_interval(25, 50)
+    lo, hi = reports.wilson_interval(25, 50)
     assert lo == pytest.approx(0.3664, abs=1e-3) and hi == pytest.approx(0.6336, abs=1e-3)
-    lo, hi = rb.wilson_interval(50, 50)
+    lo, hi = reports.wilson_interval(50, 50)
     assert hi == 1.0 and lo == pytest.approx(0.9287, abs=1e-3)
 
 
@@ -43,8 +45,8 @@ def _fake_results(tmp_path: Path) -> dict:
     for m, ks in rates.items():
         for n, k in zip((10, 20), ks, strict=True):
             succ = [True] * k + [False] * (50 - k)
-            lo, hi = rb.wilson_interval(k, 50)
-            runs.append({"method": m, "label": rb.METHODS[m][1], "task": "reach-v3", "demos": n, "seed": 0,
+            lo, hi = reports.wilson_interval(k, 50)
+            runs.append({"method": m, "label": scales.METHODS[m][1], "task": "reach-v3", "demos": n, "seed": 0,
                          "protocol": "random", "status": "done", "steps": 100, "batch_size": 8, "steps_done": 100,
                          "n_params": 1_000_000, "train_seconds": 10.0, "train_wall_seconds": 20.0,
                          "train_slices": [], "eval_episodes": 50, "eval_episodes_planned": 50, "successes": k,
@@ -60,7 +62,7 @@ def _fake_results(tmp_path: Path) -> dict:
                      "eval_episodes_per_cell": 50, "episode_length": 300, "eval_placements": "seeded",
                      "method_args": {m: [] for m in rates},
                      "config_files": {m: f"policies_config/metaworld/{m}.json" for m in rates}},
-        "datasets": {}, "eval_sets": {}, "runs": runs, "rnd_losses": rb.rnd_losses(runs),
+        "datasets": {}, "eval_sets": {}, "runs": runs, "rnd_losses": reports.rnd_losses(runs),
     }  # fmt: skip
 
 
@@ -69,10 +71,10 @@ def test_reports_from_results(tmp_path):
     losses = res["rnd_losses"]
     # ACT beats R&D-AI at 10 demos (48 vs 40 of 50: intervals overlap), nobody beats it at 20 demos
     assert [(x["demos"], x["baseline"], x["significant"]) for x in losses] == [(10, "act", False)]
-    md = rb.markdown_report(res)
+    md = reports.markdown_report(res)
     assert "| R&D-AI | 80% [67–89] (40/50) | 90% [79–96] (45/50) | 85% [77–91] (85/100) |" in md
     assert "Where R&D loses" in md and "ACT 96% > R&D-AI 80% (within the intervals)" in md
-    rb.plot_success_vs_demos(res, tmp_path / "plot.png")
+    reports.plot_success_vs_demos(res, tmp_path / "plot.png")
     assert (tmp_path / "plot.png").stat().st_size > 1000
 
 
@@ -104,10 +106,10 @@ def test_dry_run_commands(tmp_path):
 
 
 def test_eval_seeds_must_not_include_the_recording_seed(tmp_path):
-    a = rb.parse_args(["--scale", "smoke", "--record-seed", "1001", "--out", str(tmp_path / "o"),
+    a = cli.parse_args(["--scale", "smoke", "--record-seed", "1001", "--out", str(tmp_path / "o"),
                        "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip
     with pytest.raises(ValueError, match="recording seed"):
-        rb.Benchmark(a).eval_set("reach-v3")
+        Benchmark(a).eval_set("reach-v3")
 
 
 @pytest.mark.slow
@@ -164,9 +166,9 @@ def test_cpu_scale_uses_the_cpu_configs(tmp_path):
 def test_a_committed_run_result_is_skipped_on_a_fresh_work_dir(tmp_path):
     """Each finished run's JSON under --out/runs survives a fresh clone (the work dir does not): a rerun skips
     it and reports it."""
-    a = rb.parse_args(["--scale", "smoke", "--methods", "act", "--out", str(tmp_path / "o"),
+    a = cli.parse_args(["--scale", "smoke", "--methods", "act", "--out", str(tmp_path / "o"),
                        "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip
-    b = rb.Benchmark(a)
+    b = Benchmark(a)
     st = {"status": "done", "method": "act", "task": "reach-v3", "demos": 3, "seed": 0,
           "eval_chunks": {"0:2": {"successes": [True, False], "wall_s": 1.0, "dir": "x"}},
           "train_slices": [{"start_step": 0, "end_step": 2, "wall_s": 3.0, "loop_s": 2.0, "rc": 0, "stopped": None}],

@@ -1,0 +1,121 @@
+"""The spatial protocol's evaluation: the grid of evaluation placements and lerobot-eval's loop over an explicit
+list of placements (``run_benchmark.py _grid_eval``, run as a subprocess: ``rnd_mw`` takes no placement list
+on the command line)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+from . import ENTRY_POINT, REPO_ROOT
+from .files import _write_json
+
+GRID_DIMS = {"reach-v3": (3, 4), "reach-wall-v3": (3, 4)}  # goal x, y; other tasks: object x, y
+
+
+def grid_placements(env, task: str, low, high, grid: int, grid_dims: list[int] | None,
+                    eval_seed: int) -> dict:  # fmt: skip
+    """The valid points of a ``grid`` x ``grid`` grid over two placement coordinates of ``env`` (``grid_dims``,
+    else the task's ``GRID_DIMS``, else its first two varying coordinates), the others at the centre of their
+    range ``[low, high]``; one episode each, all with ``eval_seed``."""
+    import numpy as np
+
+    dims = tuple(grid_dims) if grid_dims else GRID_DIMS.get(task)
+    if dims is None:
+        varying = [i for i in range(len(low)) if high[i] > low[i]]
+        dims = tuple(varying[:2])
+    centre = (low + high) / 2
+    xs = np.linspace(low[dims[0]], high[dims[0]], grid)
+    ys = np.linspace(low[dims[1]], high[dims[1]], grid)
+    points, cells = [], []
+    for iy, y in enumerate(ys):
+        for ix, x in enumerate(xs):
+            p = centre.copy()
+            p[dims[0]], p[dims[1]] = x, y
+            if env.is_valid_placement(p):
+                points.append([float(v) for v in p])
+                cells.append([iy, ix])
+    return {"grid_dims": list(dims), "grid_x": xs.tolist(), "grid_y": ys.tolist(), "placements": points,
+            "cells": cells, "n_invalid": grid * grid - len(points), "seeds": [eval_seed] * len(points)}  # fmt: skip
+
+
+def grid_eval_argv(ckpt: Path, device: str, task: str, episode_length: int, batch_size: int, seed: int,
+                   placements_file: Path, output_dir: Path) -> list[str]:  # fmt: skip
+    """The command that evaluates ``ckpt`` on the placements listed in ``placements_file`` (runs ``main``)."""
+    return [sys.executable, str(ENTRY_POINT), "_grid_eval",
+            f"--policy-path={ckpt}", f"--device={device}", f"--task={task}",
+            f"--episode-length={episode_length}", f"--batch-size={batch_size}",
+            f"--seed={seed}", f"--placements={placements_file}", f"--output-dir={output_dir}"]  # fmt: skip
+
+
+def main(argv: list[str]) -> int:
+    """lerobot-eval's loop over an explicit list of placements (one episode each); writes eval_info.json
+    in lerobot-eval's layout (per_task[0].metrics.successes)."""
+    p = argparse.ArgumentParser(prog="run_benchmark.py _grid_eval")
+    p.add_argument("--policy-path", required=True)
+    p.add_argument("--device", default="cpu")
+    p.add_argument("--task", required=True)
+    p.add_argument("--episode-length", type=int, default=300)
+    p.add_argument("--batch-size", type=int, default=1)
+    p.add_argument("--seed", type=int, default=1000)
+    p.add_argument("--placements", required=True)
+    p.add_argument("--output-dir", required=True)
+    a = p.parse_args(argv)
+    sys.path.insert(0, str(REPO_ROOT))
+    import gymnasium as gym
+    import torch
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.envs.factory import make_env_pre_post_processors
+    from lerobot.policies.factory import make_policy, make_pre_post_processors
+    from lerobot.scripts.lerobot_eval import eval_policy
+    from lerobot.utils.random_utils import set_seed
+
+    import lerobot_policy_rnd  # noqa: F401
+    from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
+
+    placements = json.loads(Path(a.placements).read_text())
+    set_seed(a.seed)
+    env_cfg = RnDMetaWorldEnvConfig(task=a.task, episode_length=a.episode_length)
+    pcfg = PreTrainedConfig.from_pretrained(a.policy_path)
+    pcfg.pretrained_path = Path(a.policy_path)
+    pcfg.device = a.device
+    policy = make_policy(cfg=pcfg, env_cfg=env_cfg)
+    policy.eval()
+    pre, post = make_pre_post_processors(
+        policy_cfg=pcfg, pretrained_path=a.policy_path,
+        preprocessor_overrides={"device_processor": {"device": str(policy.config.device)},
+                                "rename_observations_processor": {"rename_map": {}}},
+    )  # fmt: skip
+    env_pre, env_post = make_env_pre_post_processors(env_cfg=env_cfg, policy_cfg=pcfg)
+    t0 = time.time()
+    successes, rewards = [], []
+    for i in range(0, len(placements), a.batch_size):
+        batch = placements[i : i + a.batch_size]
+        fns = [
+            (lambda pl=pl: gym.make(env_cfg.gym_id, disable_env_checker=True,
+                                    **{**env_cfg.gym_kwargs, "placement": "fixed", "placements": [pl]}))
+            for pl in batch
+        ]  # fmt: skip
+        vec = gym.vector.SyncVectorEnv(fns, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
+        try:
+            with torch.no_grad():
+                info = eval_policy(vec, policy, env_pre, env_post, pre, post, n_episodes=len(batch),
+                                   start_seed=a.seed + i)  # fmt: skip
+        finally:
+            vec.close()
+        successes += [bool(e["success"]) for e in info["per_episode"]]
+        rewards += [e["max_reward"] for e in info["per_episode"]]
+        print(f"grid eval: {len(successes)}/{len(placements)} episodes, {sum(successes)} successes", flush=True)
+    out = Path(a.output_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    n = max(1, len(successes))
+    _write_json(out / "eval_info.json", {
+        "per_task": [{"task_group": "rnd_mw", "task_id": 0,
+                      "metrics": {"successes": successes, "max_rewards": rewards, "placements": placements}}],
+        "overall": {"pc_success": 100.0 * sum(successes) / n, "n_episodes": len(successes),
+                    "eval_s": time.time() - t0},
+    })  # fmt: skip
+    return 0

@@ -1,0 +1,316 @@
+"""Reports, pure functions of results.json: Wilson intervals, per-cell statistics, where R&D loses, results.md
+and the plots (success vs demos, success per task, loss curves, spatial heat maps)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from .scales import METHODS, RND_METHODS
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score interval for a binomial proportion (95% by default); (nan, nan) for n = 0."""
+    if n <= 0:
+        return (float("nan"), float("nan"))
+    p = successes / n
+    denom = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+def _pool(runs: list[dict]) -> tuple[int, int]:
+    return sum(r["successes"] for r in runs), sum(r["eval_episodes"] for r in runs)
+
+
+def cell_stats(runs: list[dict], method: str, task: str | None, demos: int | None) -> dict | None:
+    sel = [r for r in runs if r["method"] == method and r["eval_episodes"] > 0
+           and (task is None or r["task"] == task) and (demos is None or r["demos"] == demos)]  # fmt: skip
+    if not sel:
+        return None
+    k, n = _pool(sel)
+    lo, hi = wilson_interval(k, n)
+    return {"k": k, "n": n, "rate": k / n, "lo": lo, "hi": hi}
+
+
+def rnd_losses(runs: list[dict]) -> list[dict]:
+    """Every (task, demos) cell where a baseline's success rate beats an R&D variant's."""
+    out = []
+    cells = sorted({(r["task"], r["demos"]) for r in runs})
+    methods = sorted({r["method"] for r in runs})
+    for task, n in cells:
+        for rv in [m for m in methods if m in RND_METHODS]:
+            s = cell_stats(runs, rv, task, n)
+            if s is None:
+                continue
+            for b in [m for m in methods if m not in RND_METHODS]:
+                t = cell_stats(runs, b, task, n)
+                if t is None or t["rate"] <= s["rate"]:
+                    continue
+                out.append({"task": task, "demos": n, "rnd": rv, "baseline": b,
+                            "rnd_rate": s["rate"], "baseline_rate": t["rate"],
+                            "significant": bool(t["lo"] > s["hi"])})  # fmt: skip
+    return out
+
+
+def _fmt_cell(s: dict | None) -> str:
+    if s is None:
+        return "–"
+    return f"{100 * s['rate']:.0f}% [{100 * s['lo']:.0f}–{100 * s['hi']:.0f}] ({s['k']}/{s['n']})"
+
+
+def _fmt_s(x) -> str:
+    if x is None:
+        return "–"
+    return f"{x:.0f} s" if x < 600 else f"{x / 60:.1f} min"
+
+
+def markdown_report(res: dict) -> str:
+    b, runs, st = res["benchmark"], res["runs"], res["settings"]
+    cells = [(t, n) for t in b["tasks"] for n in b["demos"]]
+    lines = [
+        f"# Benchmark: {b['scale']} scale, {b['protocol']} protocol",
+        "",
+        f"{'Complete' if b['complete'] else '**Incomplete** (run again with `--resume`)'}; written "
+        f"{b['written']} on {b['host']['platform']} ({b['host']['cpus']} CPUs"
+        f"{', ' + b['host']['cuda'] if b['host']['cuda'] else ''}), torch {b['host']['torch']}, "
+        f"lerobot {b['host']['lerobot']}.",
+        "",
+        f"Success rate, Wilson 95% interval, (successes / episodes). Training seeds {b['seeds']}; "
+        f"{st['matched']['steps']} steps of batch {st['matched']['batch_size']}; demos recorded with seed "
+        f"{st['record_seed']}; evaluation seeds from {st['eval_seed']} ({st['eval_episodes_per_cell']} episodes "
+        f"per cell, {st['episode_length']}-step episodes).",
+    ]
+    if b["scale"] == "smoke":
+        lines += ["", "**Smoke scale: tiny models trained for a few steps. These numbers test the pipeline; "
+                  "they say nothing about the methods.**"]  # fmt: skip
+    lines += ["", "| method | " + " | ".join(f"{t} / {n} demos" for t, n in cells) + " | average |",
+              "| --- |" + " --- |" * (len(cells) + 1)]  # fmt: skip
+    for m in b["methods"]:
+        row = [_fmt_cell(cell_stats(runs, m, t, n)) for t, n in cells]
+        row.append(_fmt_cell(cell_stats(runs, m, None, None)))
+        lines.append(f"| {METHODS[m][1]} | " + " | ".join(row) + " |")
+    lines += ["", "## Training and evaluation cost", "",
+              "| method | parameters | training loop (sum over runs) | training wall incl. start-up | "
+              "evaluation wall | runs done |", "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip
+    for m in b["methods"]:
+        rs = [r for r in runs if r["method"] == m]
+        params = sorted({r["n_params"] for r in rs if r["n_params"]})
+        ptxt = ", ".join(f"{p / 1e6:.2f}M" for p in params) or "–"
+        tl = [r["train_seconds"] for r in rs if r["train_seconds"] is not None]
+        tw = [r["train_wall_seconds"] for r in rs if r["train_wall_seconds"] is not None]
+        ev = [r["eval_seconds"] for r in rs if r["eval_seconds"]]
+        done = sum(r["status"] == "done" for r in rs)
+        lines.append(f"| {METHODS[m][1]} | {ptxt} | {_fmt_s(sum(tl)) if tl else '–'} | "
+                     f"{_fmt_s(sum(tw)) if tw else '–'} | {_fmt_s(sum(ev)) if ev else '–'} | {done}/{len(rs)} |")  # fmt: skip
+    lines += ["", "## Where R&D loses", ""]
+    losses = res.get("rnd_losses", [])
+    if not losses:
+        lines.append("No cell where a baseline's success rate is above an R&D variant's.")
+    else:
+        lines.append("Cells where a baseline's success rate is above an R&D variant's; *significant* = the "
+                     "baseline's Wilson interval lies entirely above R&D's.")  # fmt: skip
+        lines.append("")
+        for x in losses:
+            lines.append(f"- {x['task']} / {x['demos']} demos: {METHODS[x['baseline']][1]} "
+                         f"{100 * x['baseline_rate']:.0f}% > {METHODS[x['rnd']][1]} {100 * x['rnd_rate']:.0f}%"
+                         f"{' (significant)' if x['significant'] else ' (within the intervals)'}")  # fmt: skip
+    failed = [r for r in runs if r["status"] == "failed"]
+    pending = [r for r in runs if r["status"] not in ("done", "failed")]
+    if failed or pending:
+        lines += ["", "## Not done", ""]
+        for r in failed:
+            err = (r.get("error") or "").strip().splitlines()
+            lines.append(f"- FAILED {r['method']} / {r['task']} / {r['demos']} demos / seed {r['seed']}: "
+                         f"`{err[0][:200] if err else '?'}` (full log tail in results.json)")  # fmt: skip
+        for r in pending:
+            lines.append(f"- pending {r['method']} / {r['task']} / {r['demos']} demos / seed {r['seed']} "
+                         f"({r['steps_done']}/{r['steps']} steps, {r['eval_episodes']} episodes evaluated)")
+    lines += ["", "## Settings", ""]
+    for k, v in st["matched"].items():
+        lines.append(f"- {k}: {v}")
+    lines.append(f"- evaluation placements: {st['eval_placements']}")
+    for t, es in res.get("eval_sets", {}).items():
+        if "min_normalised_distance_to_train" in es:
+            lines.append(f"- {t}: {len(es['placements'])} evaluation placements, none equal to a training one "
+                         f"({es['n_equal_to_a_train_placement']} equal); nearest training placement at normalised "
+                         f"distance {es['min_normalised_distance_to_train']:.3f} (median "
+                         f"{es['median_normalised_distance_to_train']:.3f})")  # fmt: skip
+    for t, ds in res.get("datasets", {}).items():
+        for n, d in ds.items():
+            pre = d.get("prefix_of_next")
+            lines.append(f"- data {t} / {n} demos: `{d['root']}`, {d['frames']} frames"
+                         f"{'; first episodes of the next larger set' if pre else ''}"
+                         f"{'; NOT a prefix of the next larger set' if pre is False else ''}")  # fmt: skip
+    lines.append("- per-method lerobot-train overrides (besides the config file):")
+    for m, args in st["method_args"].items():
+        lines.append(f"  - {METHODS[m][1]} (`{st['config_files'][m]}`): `{' '.join(args)}`")
+    lines += ["", "Every command, per-episode outcome and seed is in `results.json`.", ""]
+    return "\n".join(lines)
+
+
+def _mpl():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_success_vs_demos(res: dict, path: Path) -> None:
+    plt = _mpl()
+    b, runs = res["benchmark"], res["runs"]
+    panels = list(b["tasks"]) + (["average"] if len(b["tasks"]) > 1 else [])
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 3.6), squeeze=False)
+    for ax, panel in zip(axes[0], panels, strict=True):
+        for j, m in enumerate(b["methods"]):
+            xs, ys, lo, hi = [], [], [], []
+            for n in sorted(b["demos"]):
+                s = cell_stats(runs, m, None if panel == "average" else panel, n)
+                if s is None:
+                    continue
+                xs.append(n + (j - (len(b["methods"]) - 1) / 2) * 0.15 * (1 if len(b["demos"]) == 1 else 1))
+                ys.append(100 * s["rate"])
+                lo.append(100 * (s["rate"] - s["lo"]))
+                hi.append(100 * (s["hi"] - s["rate"]))
+            if xs:
+                ax.errorbar(xs, ys, yerr=[lo, hi], marker="o", capsize=3, label=METHODS[m][1],
+                            linestyle="-" if len(xs) > 1 else "none")  # fmt: skip
+        ax.set_title(panel)
+        ax.set_xlabel("demonstrations")
+        ax.set_xticks(sorted(b["demos"]))
+        ax.set_ylim(-5, 105)
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("success rate (%), Wilson 95%")
+    if axes[0][-1].get_legend_handles_labels()[0]:
+        axes[0][-1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    title = f"{b['scale']} scale, {b['protocol']} protocol"
+    if b["scale"] == "smoke":
+        title += " (pipeline check, not a result)"
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_success_per_task(res: dict, path: Path) -> None:
+    """Bars: success per task (and the mean over tasks) per method, Wilson 95% intervals, all demo counts pooled."""
+    plt = _mpl()
+    b, runs = res["benchmark"], res["runs"]
+    panels = list(b["tasks"]) + (["mean over tasks"] if len(b["tasks"]) > 1 else [])
+    fig, ax = plt.subplots(figsize=(1.6 + 1.5 * len(panels) * max(1, len(b["methods"])) / 3, 3.6))
+    width = 0.8 / max(1, len(b["methods"]))
+    for j, m in enumerate(b["methods"]):
+        xs, ys, lo, hi = [], [], [], []
+        for i, panel in enumerate(panels):
+            if panel == "mean over tasks":
+                cells = [cell_stats(runs, m, t, None) for t in b["tasks"]]
+                if any(c is None for c in cells):
+                    continue
+                rate = sum(c["rate"] for c in cells) / len(cells)
+                s = {"rate": rate, "lo": rate, "hi": rate}
+            else:
+                s = cell_stats(runs, m, panel, None)
+            if s is None:
+                continue
+            xs.append(i + (j - (len(b["methods"]) - 1) / 2) * width)
+            ys.append(100 * s["rate"])
+            lo.append(100 * (s["rate"] - s["lo"]))
+            hi.append(100 * (s["hi"] - s["rate"]))
+        if xs:
+            ax.bar(xs, ys, width=width, yerr=[lo, hi], capsize=3, label=METHODS[m][1])
+    ax.set_xticks(range(len(panels)))
+    ax.set_xticklabels(panels, fontsize=8)
+    ax.set_ylim(0, 105)
+    ax.set_ylabel("success rate (%), Wilson 95%")
+    ax.grid(axis="y", alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    ax.set_title(f"{b['scale']} scale: {', '.join(str(n) for n in b['demos'])} demos, "
+                 f"{b['protocol']} placements", fontsize=9)  # fmt: skip
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_loss_curves(res: dict, path: Path) -> None:
+    """Training loss against step, one panel per task, one line per method (each method's own loss)."""
+    plt = _mpl()
+    b, runs = res["benchmark"], res["runs"]
+    tasks = [t for t in b["tasks"] if any(r.get("loss_curve") and r["task"] == t for r in runs)]
+    if not tasks:
+        return
+    fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
+    for ax, task in zip(axes[0], tasks, strict=True):
+        for r in runs:
+            if r["task"] != task or not r.get("loss_curve"):
+                continue
+            steps, losses = zip(*r["loss_curve"])
+            ax.plot(steps, losses, label=f"{METHODS[r['method']][1]} (n{r['demos']}, s{r['seed']})")
+        ax.set_yscale("log")
+        ax.set_title(task, fontsize=9)
+        ax.set_xlabel("training step")
+        ax.grid(alpha=0.3)
+    axes[0][0].set_ylabel("training loss (each method's own)")
+    axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_heatmap(res: dict, task: str, path: Path) -> None:
+    """Success over the evaluation grid (rows: methods, columns: demo counts), training placements marked."""
+    import numpy as np
+
+    plt = _mpl()
+    b, runs = res["benchmark"], res["runs"]
+    es = res["eval_sets"].get(task)
+    if not es or "cells" not in es:
+        return
+    G = len(es["grid_x"])
+    dims = es["grid_dims"]
+    ms, ns = b["methods"], sorted(b["demos"])
+    fig, axes = plt.subplots(len(ms), len(ns), figsize=(max(5.0, 3.0 * len(ns) + 1.2), 2.7 * len(ms) + 0.6),
+                             squeeze=False)  # fmt: skip
+    gx, gy = es["grid_x"], es["grid_y"]
+    hx = (gx[-1] - gx[0]) / max(1, G - 1) / 2
+    hy = (gy[-1] - gy[0]) / max(1, G - 1) / 2
+    ext = [gx[0] - hx, gx[-1] + hx, gy[0] - hy, gy[-1] + hy]  # cell centres on the grid points
+    for i, m in enumerate(ms):
+        for j, n in enumerate(ns):
+            ax = axes[i][j]
+            grid = np.full((G, G), np.nan)
+            sel = [r for r in runs if r["method"] == m and r["task"] == task and r["demos"] == n]
+            if sel and all(len(r["per_episode_success"]) == len(es["cells"]) for r in sel):
+                acc = np.mean([r["per_episode_success"] for r in sel], axis=0)
+                for (iy, ix), v in zip(es["cells"], acc, strict=True):
+                    grid[iy, ix] = v
+            im = ax.imshow(grid, origin="lower", extent=ext, vmin=0, vmax=1, cmap="RdYlGn", aspect="auto")
+            tr = res["datasets"].get(task, {}).get(str(n), {}).get("placements", [])
+            if tr:
+                tr = np.asarray(tr)
+                ax.scatter(tr[:, dims[0]], tr[:, dims[1]], marker="x", c="k", s=18, label="demos")
+            s = cell_stats(runs, m, task, n)
+            ax.set_title(f"{METHODS[m][1]}, {n} demos: {_fmt_cell(s).split(' (')[0]}", fontsize=7)
+            ax.tick_params(labelsize=6)
+            ax.set_xlabel(f"placement[{dims[0]}] (m)", fontsize=7)
+            ax.set_ylabel(f"placement[{dims[1]}] (m)", fontsize=7)
+    fig.subplots_adjust(top=1.0 - 0.85 / fig.get_figheight(), hspace=0.45, wspace=0.35)
+    fig.colorbar(im, ax=axes, shrink=0.6, label="success")
+    fig.suptitle(f"{task}: success per evaluation placement\n(x: training placements; grid over placement "
+                 f"coordinates {dims[0]}, {dims[1]})", fontsize=8)  # fmt: skip
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_report_files(res: dict, out: Path) -> None:
+    """results.md and the plots of ``res`` into ``out`` (heat maps under the spatial protocol)."""
+    (out / "results.md").write_text(markdown_report(res))
+    plot_success_vs_demos(res, out / "success_vs_demos.png")
+    plot_success_per_task(res, out / "success_per_task.png")
+    plot_loss_curves(res, out / "loss_curves.png")
+    if res["benchmark"]["protocol"] == "spatial":
+        for task in res["benchmark"]["tasks"]:
+            plot_heatmap(res, task, out / f"heatmap_{task}.png")

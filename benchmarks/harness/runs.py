@@ -1,0 +1,532 @@
+"""The benchmark runs: datasets, evaluation placements, and per (method, task, demos, seed) training,
+evaluation and resumption within the time budget; run.json / per-run result JSON files; results.json."""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import math
+import os
+import platform
+import re
+import shlex
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from . import REPO_ROOT, grid_eval
+from .files import _read_json, _rel, _write_json
+from .processes import OutOfTime, git_commit, run_logged, tool_argv
+from .reports import rnd_losses, wilson_interval, write_report_files
+from .scales import COMMON_METHOD_ARGS, CONFIG_DIR, METHODS, SCALES, method_family
+
+HARNESS_VERSION = 1
+EXIT_OK, EXIT_FAILED, EXIT_MORE = 0, 1, 3
+
+
+class Benchmark:
+    def __init__(self, a: argparse.Namespace):
+        self.a = a
+        self.out = Path(a.out).resolve()
+        self.work = Path(a.work_dir).resolve()
+        self.data_dir = Path(a.data_dir).resolve()
+        self.deadline = None if a.max_minutes is None else time.time() + 60.0 * a.max_minutes
+        self.state_path = self.work / "state.json"
+        self.started = dt.datetime.now().isoformat(timespec="seconds")
+        self.datasets: dict = {}
+        self.eval_sets: dict = {}
+        self.more_work = False
+        self.failed = False
+
+    # ------------------------------------------------------------------ budget
+    def remaining(self) -> float:
+        return math.inf if self.deadline is None else self.deadline - time.time()
+
+    def need(self, seconds: float, what: str) -> None:
+        if self.remaining() < seconds:
+            raise OutOfTime(f"{what}: needs ~{seconds:.0f} s, {max(0, self.remaining()):.0f} s left")
+
+    # ------------------------------------------------------------------ datasets
+    def dataset_root(self, task: str, n: int) -> tuple[Path, str]:
+        a = self.a
+        mode = "fps" if a.protocol == "spatial" else "random"
+        name = f"mw_{task}_{mode}_s{a.record_seed}_n{n}"
+        return self.data_dir / name, f"local/{name}"
+
+    def record(self, task: str) -> None:
+        """Record (or reuse, or extend) one dataset per demo count; smaller sets are prefixes of larger."""
+        a = self.a
+        mode = "fps" if a.protocol == "spatial" else "random"
+        prev_root = None
+        self.datasets[task] = {}
+        for n in sorted(a.demos):
+            root, repo_id = self.dataset_root(task, n)
+            info = _read_json(root / "meta" / "info.json")
+            have = int(info.get("total_episodes", 0)) if info else 0
+            if have < n:
+                if root.exists() and info is None:
+                    shutil.rmtree(root)
+                resume = root.exists()
+                if not root.exists() and prev_root is not None:  # extend the previous (smaller) set
+                    shutil.copytree(prev_root, root)
+                    resume = True
+                self.need(60 + 8.0 * (n - (have if resume else 0)), f"recording {root.name}")
+                argv = tool_argv("lerobot-rnd-record", a.launcher) + [
+                    "--task", task, "--episodes", str(n), "--root", str(root), "--repo-id", repo_id,
+                    "--placements", mode, "--seed", str(a.record_seed),
+                ] + (["--resume"] if resume else [])  # fmt: skip
+                r = run_logged(argv, self.work / "logs" / f"record_{root.name}.log", env=self.env(),
+                               dry_run=a.dry_run)  # fmt: skip
+                if r.rc != 0:
+                    raise RuntimeError(f"recording {root} failed (rc {r.rc}):\n{r.tail}")
+            rec = _read_json(root / "meta" / "rnd_recording.json", {}) or {}
+            kept = [x for x in rec.get("attempts", []) if x.get("success")]
+            kept.sort(key=lambda x: x["episode_index"])
+            info = _read_json(root / "meta" / "info.json", {}) or {}
+            self.datasets[task][n] = {
+                "root": _rel(root), "repo_id": repo_id, "placements_mode": mode, "record_seed": a.record_seed,
+                "episodes": info.get("total_episodes"), "frames": info.get("total_frames"),
+                "placements": [x["placement"] for x in kept][:n],
+                "placement_indices": [x["placement_index"] for x in kept][:n],
+                "expert_failures": sum(1 for x in rec.get("attempts", []) if not x.get("success")),
+            }  # fmt: skip
+            prev_root = root
+        # check the nesting (smaller sets = first episodes of the larger ones)
+        ns = sorted(self.datasets[task])
+        for small, big in zip(ns, ns[1:], strict=False):
+            s, b = self.datasets[task][small], self.datasets[task][big]
+            s["prefix_of_next"] = bool(b["placements"][: len(s["placements"])] == s["placements"])
+
+    # ------------------------------------------------------------------ evaluation placements
+    def eval_set(self, task: str) -> dict:
+        """Evaluation placements of ``task`` (random: one per seed; spatial: the grid) + held-out check."""
+        if task in self.eval_sets:
+            return self.eval_sets[task]
+        import numpy as np
+
+        from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
+
+        a = self.a
+        env = RnDMetaWorldEnv(task, episode_length=a.episode_length)
+        sp = env.placement_space
+        low, high = np.asarray(sp.low, float), np.asarray(sp.high, float)
+        span = np.where(high - low > 0, high - low, 1.0)
+        out: dict = {"protocol": a.protocol}
+        try:
+            if a.protocol == "random":
+                seeds = list(range(a.eval_seed, a.eval_seed + a.eval_episodes))
+                placements = []
+                for s in seeds:
+                    env.reset(seed=s)
+                    placements.append([float(v) for v in env.placement])
+                out.update(seeds=seeds, placements=placements)
+            else:
+                out.update(grid_eval.grid_placements(env, task, low, high, a.grid, a.grid_dims, a.eval_seed))
+        finally:
+            env.close()
+        # held-out check against every training placement of this task
+        train = [p for d in self.datasets.get(task, {}).values() for p in d["placements"]]
+        if train and out["placements"]:
+            P = (np.asarray(out["placements"]) - low) / span
+            T = (np.asarray(train) - low) / span
+            d = np.linalg.norm(P[:, None, :] - T[None, :, :], axis=-1).min(axis=1)
+            out["min_normalised_distance_to_train"] = float(d.min())
+            out["median_normalised_distance_to_train"] = float(np.median(d))
+            out["n_equal_to_a_train_placement"] = int((d < 1e-9).sum())
+        if a.protocol == "random" and a.record_seed in out.get("seeds", []):
+            raise ValueError(
+                f"evaluation seeds {a.eval_seed}..{a.eval_seed + a.eval_episodes - 1} include the recording "
+                f"seed {a.record_seed}: the first evaluation placement of that seed is a training placement"
+            )
+        self.eval_sets[task] = out
+        return out
+
+    # ------------------------------------------------------------------ runs
+    def env(self) -> dict:
+        e = dict(os.environ)
+        e.setdefault("MUJOCO_GL", "egl")
+        e["HF_HUB_OFFLINE"] = "1"
+        e["PYTHONUNBUFFERED"] = "1"
+        e["WANDB_MODE"] = "disabled"
+        pp = e.get("PYTHONPATH", "")
+        if str(REPO_ROOT) not in pp.split(os.pathsep):
+            e["PYTHONPATH"] = str(REPO_ROOT) + (os.pathsep + pp if pp else "")
+        return e
+
+    def run_dir(self, method: str, task: str, n: int, seed: int) -> Path:
+        return self.work / "runs" / self.a.protocol / method / task / f"n{n}" / f"seed{seed}"
+
+    def config_file(self, method: str) -> Path:
+        files = SCALES[self.a.scale].get("config_files", {})
+        return CONFIG_DIR / files.get(method, METHODS[method][0])
+
+    def method_args(self, method: str) -> list[str]:
+        fam = method_family(method)
+        per_scale = SCALES[self.a.scale]["method_args"]
+        args = list(COMMON_METHOD_ARGS[fam]) + list(per_scale[fam]) + list(per_scale.get(method, []))
+        for spec in self.a.train_arg or []:
+            who, _, arg = spec.partition(":")
+            if who in ("all", method, fam):
+                args.append(arg)
+        return args
+
+    def train_argv(self, method: str, task: str, n: int, seed: int, out_dir: Path) -> list[str]:
+        a = self.a
+        root, repo_id = self.dataset_root(task, n)
+        save_freq = a.save_freq if a.save_freq > 0 else a.steps
+        return tool_argv("lerobot-train", a.launcher) + [
+            f"--config_path={self.config_file(method)}",
+            f"--dataset.repo_id={repo_id}", f"--dataset.root={root}", "--dataset.video_backend=pyav",
+            f"--env.task={task}", f"--env.episode_length={a.episode_length}",
+            f"--output_dir={out_dir}", f"--job_name={method}_{task}_n{n}_s{seed}",
+            f"--seed={seed}", f"--steps={a.steps}", f"--batch_size={a.batch_size}",
+            f"--num_workers={a.num_workers}", f"--save_freq={save_freq}", f"--log_freq={a.log_freq}",
+            "--eval_freq=0", "--wandb.enable=false",
+            f"--policy.device={a.device}", "--policy.push_to_hub=false",
+        ] + self.method_args(method)  # fmt: skip
+
+    def train(self, method: str, task: str, n: int, seed: int, st: dict) -> None:
+        """Train (or resume) one run until it has ``--steps`` steps, within the time budget."""
+        a = self.a
+        rdir = self.run_dir(method, task, n, seed)
+        tdir = rdir / "train"
+        log = rdir / "train.log"
+        ckroot = tdir / "checkpoints"
+        while True:
+            last = ckroot / "last"
+            step = 0
+            if last.exists():
+                step = int((_read_json(last / "training_state" / "training_step.json", {}) or {}).get("step", 0))
+            if step >= a.steps:
+                break
+            self._prune_checkpoints(ckroot)
+            self.need(a.min_train_slice_s, f"training {method} {task} n{n}")
+            if step > 0:
+                argv = tool_argv("lerobot-train", a.launcher) + [
+                    f"--config_path={last / 'pretrained_model' / 'train_config.json'}", "--resume=true",
+                ]
+                st.setdefault("commands", {})["train_resume"] = argv
+            else:
+                if tdir.exists():
+                    shutil.rmtree(tdir)  # a start that never reached a checkpoint
+                argv = self.train_argv(method, task, n, seed, tdir)
+                st.setdefault("commands", {})["train"] = argv
+            poll = self._checkpoint_poller(ckroot)
+            deadline = None if self.deadline is None else self.deadline - a.exit_margin_s
+            r = run_logged(argv, log, deadline=deadline, poll=poll, env=self.env(), dry_run=a.dry_run)
+            if a.dry_run:
+                return
+            end_step = 0
+            if (ckroot / "last").exists():
+                end_step = int((_read_json(ckroot / "last" / "training_state" / "training_step.json", {}) or {}).get("step", 0))
+            loop_s = (time.time() - r.marks["train_loop_start"]) if "train_loop_start" in r.marks else None
+            if loop_s is not None:
+                loop_s = min(loop_s, r.wall_s)
+            st.setdefault("train_slices", []).append({
+                "start_step": step, "end_step": end_step, "wall_s": round(r.wall_s, 2),
+                "loop_s": None if loop_s is None else round(loop_s, 2), "rc": r.rc, "stopped": r.stopped,
+            })  # fmt: skip
+            self._parse_train_log(log, st)
+            _write_json(rdir / "run.json", st)
+            if r.stopped:
+                hint = ("" if end_step > step else
+                        f"; no checkpoint was reached in this slice: lower --save-freq ({a.save_freq})")
+                raise OutOfTime(f"training {method} {task} n{n} stopped at step {end_step} / {a.steps}{hint}")
+            if r.rc != 0:
+                raise RuntimeError(f"lerobot-train failed (rc {r.rc}); log {log}:\n{r.tail}")
+            if end_step <= step:
+                raise RuntimeError(f"lerobot-train made no progress (step {step}); log {log}:\n{r.tail}")
+        self._prune_checkpoints(ckroot)
+
+    def _checkpoint_poller(self, ckroot: Path):
+        """Stop training right after a checkpoint when the next one would not fit in the budget."""
+        a = self.a
+        seen = {"target": self._last_target(ckroot), "t": time.time(), "interval": None, "count": 0}
+
+        def poll():
+            tgt = self._last_target(ckroot)
+            if tgt is None or tgt == seen["target"]:
+                return None
+            now = time.time()
+            if seen["count"] > 0:
+                iv = now - seen["t"]
+                seen["interval"] = iv if seen["interval"] is None else max(seen["interval"], iv)
+            seen.update(target=tgt, t=now, count=seen["count"] + 1)
+            if a.stop_after_checkpoints and seen["count"] >= a.stop_after_checkpoints:
+                return "checkpoint"
+            if self.deadline is not None and seen["interval"] is not None:
+                if now + 1.2 * seen["interval"] > self.deadline - a.exit_margin_s:
+                    return "checkpoint"
+            return None
+
+        return poll
+
+    @staticmethod
+    def _last_target(ckroot: Path) -> str | None:
+        last = ckroot / "last"
+        try:
+            return os.readlink(last) if last.is_symlink() else (str(last) if last.exists() else None)
+        except OSError:
+            return None
+
+    def _prune_checkpoints(self, ckroot: Path) -> None:
+        """Keep only the checkpoint that ``last`` points to (unless --keep-checkpoints)."""
+        if self.a.keep_checkpoints or not ckroot.is_dir():
+            return
+        last = ckroot / "last"
+        keep = last.resolve() if last.exists() else None
+        for d in ckroot.iterdir():
+            if d.name == "last" or not d.is_dir() or d.is_symlink():
+                continue
+            if keep is None or d.resolve() != keep:
+                shutil.rmtree(d, ignore_errors=True)
+
+    @staticmethod
+    def _parse_train_log(log: Path, st: dict) -> None:
+        try:
+            text = log.read_text(errors="replace")
+        except FileNotFoundError:
+            return
+        m = re.findall(r"num_learnable_params=(\d+)", text)
+        if m:
+            st["n_params"] = int(m[-1])
+        m = re.findall(r"num_total_params=(\d+)", text)
+        if m:
+            st["n_params_total"] = int(m[-1])
+        m = re.findall(r"updt_s:([0-9.]+)", text)
+        if m:
+            st["update_s_last_logged"] = float(m[-1])
+            st["update_s_median_logged"] = sorted(float(x) for x in m)[len(m) // 2]
+        m = re.findall(r"data_s:([0-9.]+)", text)
+        if m:
+            st["data_s_median_logged"] = sorted(float(x) for x in m)[len(m) // 2]
+        curve = {}
+        for step, loss in re.findall(r"step:([0-9.]+K?) .*?loss:([0-9.]+)", text):
+            k = int(float(step[:-1]) * 1000) if step.endswith("K") else int(step)
+            curve[k] = float(loss)  # a resumed run logs its steps again: the last value wins
+        if curve:
+            st["loss_curve"] = sorted(curve.items())
+
+    # ------------------------------------------------------------------ evaluation
+    def evaluate(self, method: str, task: str, n: int, seed: int, st: dict) -> None:
+        a = self.a
+        rdir = self.run_dir(method, task, n, seed)
+        ckpt = (rdir / "train" / "checkpoints" / "last").resolve() / "pretrained_model"
+        st["checkpoint"] = _rel(ckpt)
+        es = self.eval_set(task)
+        total = len(es["placements"])
+        chunk = a.eval_chunk if a.eval_chunk > 0 else total
+        chunks = st.setdefault("eval_chunks", {})
+        for start in range(0, total, chunk):
+            k = min(chunk, total - start)
+            key = f"{start}:{start + k}"
+            if key in chunks:
+                continue
+            est = max((c["wall_s"] for c in chunks.values()), default=a.eval_chunk_estimate_s)
+            self.need(1.1 * est + a.exit_margin_s, f"evaluating {method} {task} n{n} episodes {key}")
+            edir = rdir / "eval" / f"ep{start:04d}-{start + k - 1:04d}"
+            if edir.exists():
+                shutil.rmtree(edir)
+            bs = max(1, min(a.eval_batch_size, k))
+            if a.protocol == "random":
+                argv = tool_argv("lerobot-eval", a.launcher) + [
+                    f"--policy.path={ckpt}", f"--policy.device={a.device}",
+                    "--env.type=rnd_mw", f"--env.task={task}", f"--env.episode_length={a.episode_length}",
+                    f"--eval.n_episodes={k}", f"--eval.batch_size={bs}", f"--seed={a.eval_seed + start}",
+                    f"--output_dir={edir}",
+                ]  # fmt: skip
+            else:
+                pfile = rdir / "eval" / f"grid_{start}.json"
+                _write_json(pfile, es["placements"][start : start + k])
+                argv = grid_eval.grid_eval_argv(ckpt, a.device, task, a.episode_length, bs, a.eval_seed, pfile, edir)
+            st.setdefault("commands", {}).setdefault("eval", []).append(argv)
+            deadline = None if self.deadline is None else self.deadline - a.exit_margin_s
+            r = run_logged(argv, rdir / "eval.log", deadline=deadline, env=self.env(), dry_run=a.dry_run)
+            if a.dry_run:
+                continue
+            if r.stopped:
+                raise OutOfTime(f"evaluation of {method} {task} n{n} stopped")
+            info = _read_json(edir / "eval_info.json")
+            if r.rc != 0 or info is None:
+                raise RuntimeError(f"evaluation failed (rc {r.rc}); log {rdir / 'eval.log'}:\n{r.tail}")
+            succ = [bool(x) for x in info["per_task"][0]["metrics"]["successes"]][:k]
+            if len(succ) != k:
+                raise RuntimeError(f"eval_info.json holds {len(succ)} episodes, expected {k}")
+            chunks[key] = {"successes": succ, "wall_s": round(r.wall_s, 2),
+                           "eval_s": info.get("overall", {}).get("eval_s"), "dir": _rel(edir)}  # fmt: skip
+            _write_json(rdir / "run.json", st)
+
+    # ------------------------------------------------------------------ driver
+    def run(self) -> int:
+        a = self.a
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.work.mkdir(parents=True, exist_ok=True)
+        prev = _read_json(self.state_path)
+        if prev is not None and not a.resume and not a.dry_run:
+            raise SystemExit(f"{self.work} holds an earlier benchmark: pass --resume to continue it, "
+                             f"or choose another --out / --work-dir")  # fmt: skip
+        if not a.dry_run:
+            _write_json(self.state_path, {"args": vars(a), "started": self.started})
+        print(f"benchmark: scale {a.scale}, protocol {a.protocol}, tasks {a.tasks}, demos {a.demos}, "
+              f"methods {a.methods}, seeds {a.seeds}; work dir {self.work}", flush=True)  # fmt: skip
+        try:
+            for task in a.tasks:
+                self.record(task)
+            for task in a.tasks:
+                self.eval_set(task)
+            for task in a.tasks:
+                for n in a.demos:
+                    for seed in a.seeds:
+                        for method in a.methods:
+                            self.run_one(method, task, n, seed)
+        except OutOfTime as e:
+            print(f"time budget: {e}; run again with --resume to continue", flush=True)
+            self.more_work = True
+        self.write_reports()
+        if self.more_work:
+            return EXIT_MORE
+        return EXIT_FAILED if self.failed else EXIT_OK
+
+    def result_path(self, method: str, task: str, n: int, seed: int) -> Path:
+        """The committed JSON of one finished run (survives a fresh clone; the work dir does not)."""
+        return self.out / "runs" / f"{method}__{task}__n{n}__seed{seed}.json"
+
+    def run_state(self, method: str, task: str, n: int, seed: int) -> dict:
+        st = _read_json(self.run_dir(method, task, n, seed) / "run.json")
+        if st is None:
+            st = _read_json(self.result_path(method, task, n, seed))
+        return st or {}
+
+    def run_one(self, method: str, task: str, n: int, seed: int) -> None:
+        a = self.a
+        rdir = self.run_dir(method, task, n, seed)
+        st = self.run_state(method, task, n, seed)
+        if st.get("status") == "done" and not a.dry_run:
+            return
+        if st.get("status") == "failed" and not a.retry_failed:
+            self.failed = True
+            return
+        st.update(method=method, task=task, demos=n, seed=seed, protocol=a.protocol, scale=a.scale,
+                  status="running", code_commit=st.get("code_commit") or git_commit())  # fmt: skip
+        print(f"=== {method} / {task} / {n} demos / seed {seed}", flush=True)
+        try:
+            if not a.eval_only:
+                self.train(method, task, n, seed, st)
+            self.evaluate(method, task, n, seed, st)
+            if not a.dry_run:
+                st["status"] = "done"
+                st.pop("error", None)
+                self._parse_train_log(rdir / "train.log", st)
+                _write_json(self.result_path(method, task, n, seed), st)
+                print(f"wrote {self.result_path(method, task, n, seed)}", flush=True)
+                if a.prune_optimizer:
+                    ts = (rdir / "train" / "checkpoints" / "last").resolve() / "training_state"
+                    if ts.is_dir():
+                        shutil.rmtree(ts)
+                        st["optimizer_state_pruned"] = True
+        except OutOfTime:
+            raise
+        except Exception as e:  # noqa: BLE001 - record the failure and go on with the other runs
+            st["status"] = "failed"
+            st["error"] = f"{type(e).__name__}: {e}"[-6000:]
+            self.failed = True
+            print(f"FAILED {method} / {task} / n{n}: {st['error'][-2000:]}", flush=True)
+        finally:
+            if not a.dry_run:
+                _write_json(rdir / "run.json", st)
+
+    # ------------------------------------------------------------------ reports
+    def collect(self) -> list[dict]:
+        a = self.a
+        runs = []
+        for task in a.tasks:
+            for n in a.demos:
+                for seed in a.seeds:
+                    for method in a.methods:
+                        rdir = self.run_dir(method, task, n, seed)
+                        st = self.run_state(method, task, n, seed)
+                        es = self.eval_sets.get(task, {})
+                        succ: list[bool] = []
+                        seeds: list = []
+                        for key, c in sorted(st.get("eval_chunks", {}).items(), key=lambda kv: int(kv[0].split(":")[0])):
+                            s0 = int(key.split(":")[0])
+                            succ += c["successes"]
+                            seeds += es.get("seeds", [])[s0 : s0 + len(c["successes"])]
+                        k, m = sum(succ), len(succ)
+                        lo, hi = wilson_interval(k, m)
+                        slices = st.get("train_slices", [])
+                        loop = [s["loop_s"] for s in slices if s.get("loop_s") is not None]
+                        runs.append({
+                            "method": method, "label": METHODS[method][1], "task": task, "demos": n, "seed": seed,
+                            "protocol": a.protocol, "status": st.get("status", "pending"),
+                            "steps": a.steps, "batch_size": a.batch_size,
+                            "steps_done": max((s["end_step"] for s in slices), default=0),
+                            "n_params": st.get("n_params"),
+                            "train_seconds": round(sum(loop), 2) if loop else None,
+                            "train_wall_seconds": round(sum(s["wall_s"] for s in slices), 2) if slices else None,
+                            "train_slices": slices,
+                            "eval_episodes": m, "eval_episodes_planned": len(es.get("placements", [])),
+                            "successes": k, "success_rate": (k / m) if m else None,
+                            "ci95": [lo, hi] if m else None,
+                            "eval_seconds": round(sum(c["wall_s"] for c in st.get("eval_chunks", {}).values()), 2),
+                            "per_episode_success": succ,
+                            "eval_seeds": seeds if a.protocol == "random" else None,
+                            "checkpoint": st.get("checkpoint"),
+                            "loss_curve": st.get("loss_curve"),
+                            "run_dir": _rel(rdir),
+                            "commands": st.get("commands", {}),
+                            "error": st.get("error"),
+                        })  # fmt: skip
+        return runs
+
+    def write_reports(self) -> None:
+        a = self.a
+        if a.dry_run:
+            return
+        runs = self.collect()
+        import lerobot
+        import torch
+
+        complete = all(r["status"] == "done" for r in runs)
+        settings = {
+            "matched": {
+                "observation_history": {"rnd": 2, "diffusion": 2, "act": "1 (LeRobot ACT accepts only 1)"},
+                "action_chunk_executed": 8, "rnd_chunk": 8, "act_chunk": 8,
+                "diffusion_horizon": "12 (1 past + 8 executed + 3 padding for the U-Net's 4x downsampling)",
+                "batch_size": a.batch_size, "steps": a.steps, "seeds": a.seeds,
+                "pretrained_weights": "none: ACT's ImageNet ResNet-18 cannot be downloaded here "
+                                      "(--policy.pretrained_backbone_weights=null); DP and R&D use none",
+                "optimiser": "each method's own LeRobot preset (R&D: AdamW 1e-4, cosine; ACT: AdamW 1e-4 as in "
+                             "policies_config/metaworld/act.json; DP: Adam 1e-4, cosine, 500 warm-up)",
+            },
+            "method_args": {m: self.method_args(m) for m in a.methods},
+            "config_files": {m: _rel(self.config_file(m)) for m in a.methods},
+            "record_seed": a.record_seed, "eval_seed": a.eval_seed, "episode_length": a.episode_length,
+            "eval_episodes_per_cell": (a.eval_episodes if a.protocol == "random" else "one per valid grid point"),
+            "ci": "Wilson score interval, 95%",
+            "eval_placements": (
+                "lerobot-eval --seed=S: episode i resets rnd_mw with seed S+i, whose first valid draw from the "
+                "task's placement range is the placement" if a.protocol == "random" else
+                "grid over placement coordinates (see eval_sets), others at the range centre; one episode each"),
+        }  # fmt: skip
+        result = {
+            "benchmark": {
+                "scale": a.scale, "protocol": a.protocol, "tasks": a.tasks, "demos": a.demos, "methods": a.methods,
+                "seeds": a.seeds, "device": a.device, "complete": complete, "harness_version": HARNESS_VERSION,
+                "started": self.started, "written": dt.datetime.now().isoformat(timespec="seconds"),
+                "command": shlex.join([sys.executable, *sys.argv]),
+                "host": {"platform": platform.platform(), "python": platform.python_version(),
+                         "cpus": os.cpu_count(), "torch": torch.__version__, "lerobot": lerobot.__version__,
+                         "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
+                "work_dir": _rel(self.work),
+            },
+            "settings": settings,
+            "datasets": {t: {str(n): d for n, d in v.items()} for t, v in self.datasets.items()},
+            "eval_sets": self.eval_sets,
+            "runs": runs,
+            "rnd_losses": rnd_losses(runs),
+        }  # fmt: skip
+        _write_json(self.out / "results.json", result)
+        write_report_files(result, self.out)
+        print(f"wrote {self.out / 'results.json'}, results.md, success_vs_demos.png", flush=True)

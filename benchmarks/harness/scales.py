@@ -1,0 +1,69 @@
+"""What the benchmark runs: the methods, the per-scale defaults and the per-method lerobot-train arguments."""
+
+from __future__ import annotations
+
+from . import REPO_ROOT
+
+CONFIG_DIR = REPO_ROOT / "policies_config" / "metaworld"
+
+METHODS = {  # name -> (config file, label)
+    "rnd_ai": ("rnd_ai.json", "R&D-AI"),
+    "rnd_a": ("rnd_a.json", "R&D-A"),
+    "rnd_i": ("rnd_i.json", "R&D-I"),
+    "act": ("act.json", "ACT"),
+    "diffusion": ("diffusion.json", "Diffusion Policy"),
+}
+RND_METHODS = ("rnd_ai", "rnd_a", "rnd_i")
+
+# Per-scale defaults (CLI flags override) and per-method lerobot-train overrides.
+SCALES: dict[str, dict] = {
+    "smoke": dict(
+        tasks="reach-v3", demos="3", device="cpu", steps=2, batch_size=2, save_freq=0, log_freq=1,
+        num_workers=0, eval_episodes=2, eval_chunk=0, eval_batch_size=2, episode_length=16, grid=3,
+        min_train_slice_s=30,
+        method_args={
+            "rnd": ["--policy.dim_model=64", "--policy.n_layers=1", "--policy.n_heads=4",
+                    "--policy.stats_num_samples=16"],
+            "act": ["--policy.dim_model=64", "--policy.n_heads=4", "--policy.dim_feedforward=128",
+                    "--policy.n_encoder_layers=1", "--policy.n_decoder_layers=1",
+                    "--policy.n_vae_encoder_layers=1", "--policy.latent_dim=8"],
+            "diffusion": ["--policy.down_dims=[32,64]", "--policy.diffusion_step_embed_dim=32",
+                          "--policy.spatial_softmax_num_keypoints=8"],
+        },
+    ),
+    "gpu": dict(
+        tasks="reach-v3,push-v3", demos="10,20", device="cuda", steps=25000, batch_size=32, save_freq=1000,
+        log_freq=200, num_workers=4, eval_episodes=50, eval_chunk=10, eval_batch_size=10, episode_length=300,
+        grid=8, min_train_slice_s=180,
+        method_args={
+            "rnd": [],  # paper size from the config: 8 layers x 1024, 16 heads (107M)
+            "act": ["--policy.dim_model=768", "--policy.n_heads=12", "--policy.dim_feedforward=3072",
+                    "--policy.n_encoder_layers=6"],  # 92M
+            "diffusion": ["--policy.down_dims=[640,1280]"],  # 107M
+        },
+    ),
+}
+SCALES["cpu"] = dict(
+    tasks="reach-v3,button-press-topdown-v3,drawer-close-v3", demos="10", device="cpu", steps=2000, batch_size=8,
+    save_freq=250, log_freq=50, num_workers=2, eval_episodes=50, eval_chunk=10, eval_batch_size=10,
+    episode_length=300, grid=5, min_train_slice_s=120,
+    # Each method at its own CPU size (policies_config/metaworld/*_cpu.json): R&D's CPU tier (patch 32,
+    # 4 gripper patches per future frame, width 256 x 4 layers, bf16 autocast: 6.5M), ACT as configured for
+    # MetaWorld (51.6M, mostly its ResNet-18), DP with a [128, 256, 512] U-Net (29.5M incl. its ResNet-18).
+    config_files={"rnd_ai": "rnd_ai_cpu.json", "rnd_a": "rnd_ai_cpu.json", "rnd_i": "rnd_ai_cpu.json",
+                  "act": "act_cpu.json", "diffusion": "diffusion_cpu.json"},
+    method_args={"rnd": [], "act": [], "diffusion": [],
+                 "rnd_a": ["--policy.variant=A"], "rnd_i": ["--policy.variant=I"]},
+)
+# Applied at every scale: matched horizons, no downloads, no Hub.
+COMMON_METHOD_ARGS = {
+    "rnd": ["--policy.n_obs_steps=2", "--policy.chunk_size=8", "--policy.n_action_steps=8"],
+    "act": ["--policy.n_obs_steps=1", "--policy.chunk_size=8", "--policy.n_action_steps=8",
+            "--policy.pretrained_backbone_weights=null"],
+    "diffusion": ["--policy.n_obs_steps=2", "--policy.horizon=12", "--policy.n_action_steps=8",
+                  "--policy.pretrained_backbone_weights=null"],
+}  # fmt: skip
+
+
+def method_family(method: str) -> str:
+    return "rnd" if method in RND_METHODS else method
