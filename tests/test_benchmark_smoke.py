@@ -105,6 +105,25 @@ def test_dry_run_commands(tmp_path):
         assert "--seed=1000" in c and "--env.type=rnd_mw" in c and "--eval.n_episodes=2" in c
 
 
+def test_dry_run_with_two_demo_counts_extends_the_smaller_dataset(tmp_path):
+    """Used to crash: the dry run copied the smaller dataset, which it never records."""
+    cmds = _dry_run(tmp_path, "--demos", "3,5", "--methods", "act")
+    rec = [c for c in cmds if "lerobot-rnd-record" in c]
+    assert len(rec) == 2 and "--episodes 5" in rec[1] and "--resume" in rec[1]
+    assert any(c.startswith("cp -r ") and c.endswith("_n5") for c in cmds)
+    assert not (tmp_path / "data").exists() or not any((tmp_path / "data").iterdir())
+
+
+def test_spatial_grid_needs_two_varying_coordinates():
+    import numpy as np
+
+    from benchmarks.harness.grid_eval import grid_placements
+
+    low, high = np.array([0.0, 0.9, 0.0]), np.array([0.0, 0.9, 0.1])  # one coordinate varies
+    with pytest.raises(ValueError, match=r"two placement coordinates that vary; .* --grid-dims"):
+        grid_placements(None, "drawer-close-v3", low, high, 3, None, 1000)
+
+
 def test_eval_seeds_must_not_include_the_recording_seed(tmp_path):
     a = cli.parse_args(["--scale", "smoke", "--record-seed", "1001", "--out", str(tmp_path / "o"),
                        "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip

@@ -26,6 +26,11 @@ def grid_placements(env, task: str, low, high, grid: int, grid_dims: list[int] |
     dims = tuple(grid_dims) if grid_dims else GRID_DIMS.get(task)
     if dims is None:
         varying = [i for i in range(len(low)) if high[i] > low[i]]
+        if len(varying) < 2:
+            raise ValueError(
+                f"--protocol spatial needs two placement coordinates that vary; {task} varies {len(varying)} "
+                f"({varying}): use --protocol random for it, or name two coordinates with --grid-dims"
+            )
         dims = tuple(varying[:2])
     centre = (low + high) / 2
     xs = np.linspace(low[dims[0]], high[dims[0]], grid)

@@ -69,7 +69,10 @@ class Benchmark:
                     shutil.rmtree(root)
                 resume = root.exists()
                 if not root.exists() and prev_root is not None:  # extend the previous (smaller) set
-                    shutil.copytree(prev_root, root)
+                    if a.dry_run:
+                        print(f"$ cp -r {prev_root} {root}", flush=True)
+                    else:
+                        shutil.copytree(prev_root, root)
                     resume = True
                 self.need(60 + 8.0 * (n - (have if resume else 0)), f"recording {root.name}")
                 argv = tool_argv("lerobot-rnd-record", a.launcher) + [
