@@ -6,7 +6,8 @@ Nothing in that section is typed by hand: it is rebuilt from
   benchmarks/results/train_step_cpu.json    benchmarks/bench_train_step.py (where a training step goes)
   benchmarks/results/cpu/results.json       benchmarks/run_benchmark.py --scale cpu (success vs ACT / DP)
   benchmarks/results/ablation_cpu.json      benchmarks/run_ablation.py (validation seeds, reach-v3)
-  benchmarks/results/quickstart_cpu.json    examples/quickstart.sh's summary.json, copied
+  benchmarks/results/quickstart*_cpu.json   examples/quickstart.sh's summary.json, copied (one per task)
+  benchmarks/results/inference_cpu_tier.json  benchmarks/bench_inference.py --configs cpu (chunk latency)
   benchmarks/results/device_check_*.json    benchmarks/device_check.py (GPU lease)
 
 whichever exist, between the markers `<!-- cpu-results:start -->` and `<!-- cpu-results:end -->`; the plots of
@@ -79,7 +80,13 @@ def cpu_benchmark_section(res: dict) -> list[str]:
         "| method | task | demos | success | 95% interval | episodes | params | train loop | eval | final loss |",
         "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
     ]
+    notes = []
     for r in runs:
+        run_json = RESULTS / "cpu" / "runs" / f"{r['method']}__{r['task']}__n{r['demos']}__seed{r.get('seed', 0)}.json"
+        note = (_load(run_json) or {}).get("note")
+        if note:
+            notes.append(note)
+            r = {**r, "label": f"{r['label']} [{len(notes)}]"}
         if not r["eval_episodes"]:
             lines.append(f"| {r['label']} | {r['task']} | {r['demos']} | not run | | | | | | |")
             continue
@@ -93,6 +100,7 @@ def cpu_benchmark_section(res: dict) -> list[str]:
             f"| {r['label']} | {r['task']} | {r['demos']} | {100 * r['success_rate']:.0f}% | "
             f"{100 * lo:.0f}–{100 * hi:.0f}% | {r['eval_episodes']} | {params} | {tl} | {ev} | {final} |"
         )
+    lines += [""] + [f"[{i}] {n}" for i, n in enumerate(notes, 1)]
     lines += [
         "",
         "![success per task](images/cpu_success_per_task.png)",
@@ -123,16 +131,38 @@ def ablation_section(res: dict) -> list[str]:
     return lines
 
 
-def quickstart_section(res: dict) -> list[str]:
-    s = res["seconds"]
-    return [
-        "### Quickstart",
+def quickstart_section(results: list[tuple[str, dict]]) -> list[str]:
+    lines = ["### Quickstart", ""]
+    for name, res in results:
+        s = res["seconds"]
+        command = res.get("command") or f"TASK={res['task']} STEPS={res['steps']} bash examples/quickstart.sh"
+        lines.append(
+            f"- `{command}` ({res['demos']} demos of {res['task']}, {res['steps']} training "
+            f"steps, {res['eval_episodes']} evaluation episodes): **{res['successes']}/{res['eval_episodes']} "
+            f"successes ({100 * res['success_rate']:.0f}%)** in {s['total'] / 60:.1f} minutes (record {s['record']} s, "
+            f"train {s['train']} s, evaluate {s['eval']} s) on {res['machine']['cpus']} CPU cores "
+            f"([`{name}`](../benchmarks/results/{name})). {res.get('note', '')}".rstrip()
+        )
+    return lines
+
+
+def inference_section(res: dict) -> list[str]:
+    rows = {r["method"] + (f" ({r['config']})" if r["method"].startswith("R&D") else ""): r for r in res["results"]}
+    act = next((r for r in res["results"] if r["method"] == "ACT"), None)
+    lines = [
+        "### One action chunk at inference (CPU)",
         "",
-        f"`bash examples/quickstart.sh` ({res['demos']} demos of {res['task']}, {res['steps']} training steps, "
-        f"{res['eval_episodes']} evaluation episodes): **{res['successes']}/{res['eval_episodes']} successes "
-        f"({100 * res['success_rate']:.0f}%)** in {s['total'] / 60:.1f} minutes (record {s['record']} s, train "
-        f"{s['train']} s, evaluate {s['eval']} s) on {res['machine']['cpus']} CPU cores.",
+        f"`{res['command']}` (batch {res['args']['batch']}, median of {res['args']['repeats']} interleaved calls "
+        "after warm-up; JSON: [`benchmarks/results/inference_cpu_tier.json`]"
+        "(../benchmarks/results/inference_cpu_tier.json)).",
+        "",
+        "| method | median per chunk | ratio to ACT |",
+        "| --- | ---: | ---: |",
     ]
+    for label, r in rows.items():
+        ratio = f"{r['median_ms'] / act['median_ms']:.1f}x" if act else "–"
+        lines.append(f"| {label} | {r['median_ms']:.0f} ms | {ratio} |")
+    return lines
 
 
 def main() -> int:
@@ -140,9 +170,12 @@ def main() -> int:
     train = _load(RESULTS / "train_step_cpu.json")
     if train:
         parts += train_step_section(train) + [""]
-    quick = _load(RESULTS / "quickstart_cpu.json")
+    quick = [(p.name, _load(p)) for p in sorted(RESULTS.glob("quickstart*_cpu.json"))]
     if quick:
         parts += quickstart_section(quick) + [""]
+    inference = _load(RESULTS / "inference_cpu_tier.json")
+    if inference:
+        parts += inference_section(inference) + [""]
     bench = _load(RESULTS / "cpu" / "results.json")
     if bench:
         parts += cpu_benchmark_section(bench) + [""]
