@@ -135,7 +135,9 @@ def quickstart_section(results: list[tuple[str, dict]]) -> list[str]:
     lines = ["### Quickstart", ""]
     for name, res in results:
         s = res["seconds"]
-        command = res.get("command") or f"TASK={res['task']} STEPS={res['steps']} bash examples/quickstart.sh"
+        command = res.get("command") or "bash examples/quickstart.sh"
+        if "TASK=" not in command:  # recorded when the script's default task was this one
+            command = f"TASK={res['task']} {command}"
         lines.append(
             f"- `{command}` ({res['demos']} demos of {res['task']}, {res['steps']} training "
             f"steps, {res['eval_episodes']} evaluation episodes): **{res['successes']}/{res['eval_episodes']} "
@@ -147,7 +149,7 @@ def quickstart_section(results: list[tuple[str, dict]]) -> list[str]:
 
 
 def inference_section(res: dict) -> list[str]:
-    rows = {r["method"] + (f" ({r['config']})" if r["method"].startswith("R&D") else ""): r for r in res["results"]}
+    rows = {f"{r['method']} ({r['config']})": r for r in res["results"]}
     act = next((r for r in res["results"] if r["method"] == "ACT"), None)
     lines = [
         "### One action chunk at inference (CPU)",
@@ -156,7 +158,7 @@ def inference_section(res: dict) -> list[str]:
         "after warm-up; JSON: [`benchmarks/results/inference_cpu_tier.json`]"
         "(../benchmarks/results/inference_cpu_tier.json)).",
         "",
-        "| method | median per chunk | ratio to ACT |",
+        "| method (config) | median per chunk | ratio to ACT |",
         "| --- | ---: | ---: |",
     ]
     for label, r in rows.items():
