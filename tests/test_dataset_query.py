@@ -1,0 +1,105 @@
+"""`lerobot_rnd.dataset_query`: column-first frame queries give LeRobot's own samples with fewer image decodes.
+
+The reference is LeRobot 0.4.4's own `_query_hf_dataset`, run on the same recorded dataset."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import PIL.PngImagePlugin
+import pytest
+import torch
+
+from lerobot_rnd import dataset_query
+
+
+@pytest.fixture
+def upstream_and_patched():
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    original = LeRobotDataset.__dict__["_query_hf_dataset"]
+    upstream = getattr(LeRobotDataset, "_upstream_query_hf_dataset", original)
+    yield upstream, dataset_query.query_hf_dataset_column_first
+    LeRobotDataset._query_hf_dataset = original
+
+
+def _dataset(root, obs_steps=2, chunk=8):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset, LeRobotDatasetMetadata
+
+    meta = LeRobotDatasetMetadata("local/toy_reach", root=root)
+    dt = 1.0 / meta.fps
+    cams = [k for k in meta.features if k.startswith("observation.images.")]
+    delta = {k: [-(obs_steps - 1 - i) * dt for i in range(obs_steps)] for k in [*cams, "observation.state"]}
+    delta["action"] = [i * dt for i in range(chunk)]
+    return LeRobotDataset("local/toy_reach", root=root, delta_timestamps=delta), cams
+
+
+def _items_and_decodes(ds, indices, monkeypatch):
+    decodes = [0]
+    open_png = PIL.PngImagePlugin.PngImageFile._open
+
+    def counting_open(self):
+        decodes[0] += 1
+        return open_png(self)
+
+    monkeypatch.setattr(PIL.PngImagePlugin.PngImageFile, "_open", counting_open)
+    items = [ds[i] for i in indices]
+    monkeypatch.setattr(PIL.PngImagePlugin.PngImageFile, "_open", open_png)
+    return items, decodes[0]
+
+
+def test_same_samples_as_lerobot_with_fewer_png_decodes(toy_dataset_root, upstream_and_patched, monkeypatch):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    upstream, patched = upstream_and_patched
+    ds, cams = _dataset(toy_dataset_root)
+    indices = [0, 1, 7, 15, 16, 30, len(ds) - 1]  # episode starts and ends: padded queries too
+    LeRobotDataset._query_hf_dataset = upstream
+    expected, upstream_decodes = _items_and_decodes(ds, indices, monkeypatch)
+    LeRobotDataset._query_hf_dataset = patched
+    got, patched_decodes = _items_and_decodes(ds, indices, monkeypatch)
+
+    for want, have in zip(expected, got, strict=True):
+        assert want.keys() == have.keys()
+        for key, value in want.items():
+            if isinstance(value, torch.Tensor):
+                assert torch.equal(value, have[key]), key
+            else:
+                assert value == have[key], key
+    # Per sample: the current row's cameras, then 2 history frames per camera; upstream also decodes every
+    # camera of the 2 state rows and the 8 action rows.
+    n_cams = len(cams)
+    assert patched_decodes == len(indices) * (n_cams + 2 * n_cams)
+    assert upstream_decodes == len(indices) * (n_cams + 2 * n_cams * n_cams + 2 * n_cams + 8 * n_cams)
+
+
+def _installed_in_fresh_process(env_value: str | None) -> str:
+    code = (
+        "import lerobot_policy_rnd\n"
+        "from lerobot.datasets.lerobot_dataset import LeRobotDataset\n"
+        "print(LeRobotDataset._query_hf_dataset.__module__)\n"
+    )
+    env = {"LEROBOT_RND_DATASET_QUERY": env_value} if env_value is not None else {}
+    import os
+
+    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, **env}, capture_output=True, text=True,
+                         check=True)  # fmt: skip
+    return out.stdout.strip().splitlines()[-1]
+
+
+def test_the_plugin_shim_installs_it_and_the_environment_can_opt_out(monkeypatch):
+    monkeypatch.delenv(dataset_query.OPT_OUT_ENV, raising=False)
+    assert _installed_in_fresh_process(None) == "lerobot_rnd.dataset_query"
+    assert _installed_in_fresh_process("upstream") == "lerobot.datasets.lerobot_dataset"
+
+
+def test_other_lerobot_versions_keep_their_own_query(upstream_and_patched, monkeypatch):
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    upstream, _ = upstream_and_patched
+    LeRobotDataset._query_hf_dataset = upstream
+    monkeypatch.delenv(dataset_query.OPT_OUT_ENV, raising=False)
+    monkeypatch.setattr(dataset_query.metadata, "version", lambda name: "0.5.0")
+    assert dataset_query.install_column_first_queries() is False
+    assert LeRobotDataset._query_hf_dataset is upstream
