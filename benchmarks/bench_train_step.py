@@ -12,6 +12,9 @@ For every method it builds the policy, its pre-processor, the optimiser and the 
   backward `loss.backward()`
   optim    gradient clipping, `optimizer.step()`, `zero_grad`, and `policy.update()` (EMA) if defined
 
+and, outside the step's total, `data_upstream`: one batch of the same dataset read with LeRobot 0.4.4's own frame
+query instead of the plugin's column-first one (`lerobot_rnd.dataset_query`), so the table shows what that saves.
+
 Methods are timed round-robin (one step of each in turn, after warm-up steps), so load from other processes
 hits them alike; the table reports medians and each method's total relative to the first one
 (`--reference`). Results: a printed table and `--out` JSON.
@@ -107,6 +110,12 @@ class Method:
             self.dataset, batch_size=batch_size, shuffle=True, num_workers=0, drop_last=True, generator=generator
         )
         self._it = iter(self.loader)
+        self.upstream_loader = torch.utils.data.DataLoader(
+            self.dataset, batch_size=batch_size, shuffle=True, num_workers=0, drop_last=True,
+            generator=torch.Generator().manual_seed(seed + 1),
+        )
+        self._upstream_it = iter(self.upstream_loader)
+        self.upstream_data_s: list[float] = []
         self.n_params = sum(p.numel() for p in self.policy.parameters() if p.requires_grad)
         self.render_s = 0.0
         model = getattr(self.policy, "model", None)
@@ -129,6 +138,26 @@ class Method:
         except StopIteration:
             self._it = iter(self.loader)
             return next(self._it)
+
+    def time_upstream_batch(self) -> None:
+        """Time one batch read with LeRobot's own `_query_hf_dataset` (if the plugin replaced it)."""
+        from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+        upstream = getattr(LeRobotDataset, "_upstream_query_hf_dataset", None)
+        if upstream is None:
+            return
+        patched = LeRobotDataset._query_hf_dataset
+        LeRobotDataset._query_hf_dataset = upstream
+        try:
+            t0 = time.perf_counter()
+            try:
+                next(self._upstream_it)
+            except StopIteration:
+                self._upstream_it = iter(self.upstream_loader)
+                next(self._upstream_it)
+            self.upstream_data_s.append(time.perf_counter() - t0)
+        finally:
+            LeRobotDataset._query_hf_dataset = patched
 
     def step(self, record: bool) -> None:
         t0 = time.perf_counter()
@@ -158,6 +187,7 @@ class Method:
             self.times["backward"].append(t4 - t3)
             self.times["optim"].append(t5 - t4)
             self.losses.append(float(loss))
+            self.time_upstream_batch()
 
     def summary(self) -> dict:
         med = {p: statistics.median(v) for p, v in self.times.items()}
@@ -169,6 +199,7 @@ class Method:
             "parameters": self.n_params,
             "median_s": med,
             "median_total_s": statistics.median(totals),
+            "median_data_upstream_s": statistics.median(self.upstream_data_s) if self.upstream_data_s else None,
             "p90_total_s": sorted(totals)[int(0.9 * (len(totals) - 1))],
             "steps_timed": len(totals),
             "setup_s": self.setup_s,
@@ -211,7 +242,7 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         r["speedup_vs_reference"] = ref["median_total_s"] / r["median_total_s"]
 
-    head = f"{'method':<22}{'params':>9}" + "".join(f"{p:>10}" for p in PHASES) + f"{'total':>9}{'x ref':>8}"
+    head = f"{'method':<22}{'params':>9}" + "".join(f"{p:>10}" for p in PHASES) + f"{'total':>9}{'x ref':>8}{'data (LeRobot query)':>22}"
     print(f"\nOne training step, batch {a.batch_size}, medians of {a.steps} steps (s); x ref = speed-up over "
           f"{ref_name}\n" + head)
     for r in rows:
@@ -219,6 +250,7 @@ def main(argv: list[str] | None = None) -> int:
             f"{r['method']:<22}{r['parameters'] / 1e6:>8.1f}M"
             + "".join(f"{r['median_s'][p]:>10.3f}" for p in PHASES)
             + f"{r['median_total_s']:>9.3f}{r['speedup_vs_reference']:>8.2f}"
+            + (f"{r['median_data_upstream_s']:>22.3f}" if r["median_data_upstream_s"] is not None else "")
         )
     if a.out:
         out = {

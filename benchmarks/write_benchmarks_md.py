@@ -33,6 +33,7 @@ def _load(path: Path):
 
 def train_step_section(res: dict) -> list[str]:
     phases = ("data", "pre", "render", "forward", "backward", "optim")
+    upstream = any(r.get("median_data_upstream_s") is not None for r in res["results"])
     lines = [
         "### Where a training step goes (CPU)",
         "",
@@ -41,10 +42,14 @@ def train_step_section(res: dict) -> list[str]:
         f"JSON: [`benchmarks/results/train_step_cpu.json`](../benchmarks/results/train_step_cpu.json)). Medians in "
         "seconds; `data` is one batch from LeRobot's dataset in the main process (lerobot-train moves it to "
         "worker processes, which share the same two cores); *x ref* is the speed-up of the whole step over "
-        f"`{res['reference']}` measured in the same run.",
+        f"`{res['reference']}` measured in the same run."
+        + (" *data, LeRobot's query* is the same batch size read with LeRobot 0.4.4's own frame query, which decodes "
+           "every camera of every queried row; `data` uses the plugin's column-first query "
+           "(`lerobot_rnd/dataset_query.py`)." if upstream else ""),
         "",
-        "| config | params | " + " | ".join(phases) + " | total | model step (no data) | x ref |",
-        "| --- | ---: |" + " ---: |" * (len(phases) + 3),
+        "| config | params | " + " | ".join(phases) + " | total | model step (no data) | x ref |"
+        + (" data, LeRobot's query |" if upstream else ""),
+        "| --- | ---: |" + " ---: |" * (len(phases) + 3 + int(upstream)),
     ]
     ref = next(r for r in res["results"] if r["method"] == res["reference"])
     ref_model = ref["median_total_s"] - ref["median_s"]["data"]
@@ -54,6 +59,7 @@ def train_step_section(res: dict) -> list[str]:
         lines.append(
             f"| `{r['method']}` | {r['parameters'] / 1e6:.1f}M | " + " | ".join(f"{m[p]:.3f}" for p in phases)
             + f" | {r['median_total_s']:.3f} | {model:.3f} ({ref_model / model:.1f}x) | {r['speedup_vs_reference']:.2f} |"
+            + (f" {r['median_data_upstream_s']:.3f} |" if upstream else "")
         )
     return lines
 
