@@ -40,6 +40,7 @@ ROWS = {
     "clean_jumps": ([], "default", ["--policy.denoise_step=clean"]),
     "embed_std_0.02": (["--policy.embedding_init_std=0.02"], None, []),
     "history_overlay": (["--policy.history_rgb_overlay=true"], None, []),
+    "shift_aug": (["--policy.image_shift_augment=6"], None, []),  # +-6 px, principal point moved with them
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }

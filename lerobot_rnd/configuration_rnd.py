@@ -109,6 +109,9 @@ class RnDConfig(PreTrainedConfig):
         embedding_init_std: Standard deviation of the initial frame, view, future-step and register embeddings
             (the authors use 1 and report that small values work much worse).
         dropout: Dropout in the transformer blocks.
+        image_shift_augment: Training only: shift each camera's images by a random offset of up to this many
+            pixels (at `image_size`; border replicated) and its principal point with them, so the renders stay on
+            the real gripper (`lerobot_rnd.augmentation`). 0 = off.
         num_train_timesteps: Diffusion steps K used in training.
         beta_schedule: Noise schedule of the DDIM scheduler (diffusers names).
         num_inference_steps: DDIM steps at inference (the paper: 4).
@@ -189,6 +192,7 @@ class RnDConfig(PreTrainedConfig):
     gripper_patches: int = 0
     embedding_init_std: float = 1.0
     dropout: float = 0.0
+    image_shift_augment: int = 0
 
     # Diffusion.
     num_train_timesteps: int = 50
@@ -248,6 +252,11 @@ class RnDConfig(PreTrainedConfig):
         if len(self.image_size) != 2 or any(s % self.patch_size for s in self.image_size):
             raise ValueError(
                 f"`image_size` {self.image_size} must be two sizes divisible by `patch_size` ({self.patch_size})."
+            )
+        if not 0 <= self.image_shift_augment < min(self.image_size) // 2:
+            raise ValueError(
+                f"`image_shift_augment` must be in [0, {min(self.image_size) // 2}) pixels (image_size "
+                f"{self.image_size}). Got {self.image_shift_augment}."
             )
         if self.point_map_scale <= 0:
             raise ValueError(f"`point_map_scale` must be > 0. Got {self.point_map_scale}.")

@@ -22,6 +22,7 @@ from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 from torch import Tensor, nn
 
 from lerobot_rnd.action_adapters import ActionAdapter
+from lerobot_rnd.augmentation import shift_images_and_intrinsics
 from lerobot_rnd.configuration_rnd import RnDConfig, migrate_saved_config
 from lerobot_rnd.embodiment_binding import (
     CameraRig,
@@ -444,11 +445,12 @@ class RnDModel(nn.Module):
 
     # ------------------------------------------------------------------------------------------------
     # Rendering.
-    def render_frames(self, T_world_ee_frames: Tensor, T_world_ee_images: Tensor):
+    def render_frames(self, T_world_ee_frames: Tensor, T_world_ee_images: Tensor, K: Tensor | None = None):
         """Render the gripper for every frame and camera in one call.
 
         T_world_ee_frames: (B, F, 4, 4) where the gripper is drawn; T_world_ee_images: (B, F, 4, 4) the EE pose
-        when the frame's image was taken (moves the cameras mounted on the EE).
+        when the frame's image was taken (moves the cameras mounted on the EE); K: per-sample intrinsics
+        (B, C, 3, 3) (shift augmentation), default the calibration's.
         Returns rgb (B, F, C, 3, h, w), mask (B, F, C, h, w), points (B, F, C, 3, h, w) camera frame,
         T_cam_obj (B, F, C, 4, 4), T_world_cam (B, F, C, 4, 4).
         """
@@ -462,7 +464,7 @@ class RnDModel(nn.Module):
             out = self.rasterizer(static)(
                 self.rig.mesh_index.expand(b, f, c).reshape(n),
                 T_cam_obj.reshape(n, 4, 4).float(),
-                self.rig.K.expand(b, f, c, 3, 3).reshape(n, 3, 3),
+                (self.rig.K if K is None else K[:, None]).expand(b, f, c, 3, 3).reshape(n, 3, 3),
                 dynamic=not static,
             )
         if static:
@@ -476,7 +478,7 @@ class RnDModel(nn.Module):
             T_world_cam,
         )
 
-    def render_history(self, images: Tensor, T_world_ee: Tensor) -> dict:
+    def render_history(self, images: Tensor, T_world_ee: Tensor, K: Tensor | None = None) -> dict:
         """The past/current frames' network inputs (they do not depend on the noisy actions: the sampler renders
         them once per chunk). images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4) -> {obs_rgb, obs_points}
         (B, H, C, 3, h, w): the images (with the gripper pasted over them when `history_rgb_overlay`) and the
@@ -484,17 +486,18 @@ class RnDModel(nn.Module):
         cfg = self.config
         if not cfg.render_history:
             return {"obs_rgb": images, "obs_points": torch.zeros_like(images)}
-        rgb_r, mask, points, _, _ = self.render_frames(T_world_ee, T_world_ee)
+        rgb_r, mask, points, _, _ = self.render_frames(T_world_ee, T_world_ee, K)
         obs_rgb = torch.where(mask[:, :, :, None], rgb_r, images) if cfg.history_rgb_overlay else images
         return {"obs_rgb": obs_rgb, "obs_points": points / cfg.point_map_scale}
 
     def _network_inputs(
-        self, images, T_world_ee, gripper, T_ee_future, full_composite: bool = False, history: dict | None = None
+        self, images, T_world_ee, gripper, T_ee_future, full_composite: bool = False, history: dict | None = None,
+        K: Tensor | None = None,
     ) -> dict:
         """Render the current noisy actions and build the network's inputs.
 
         images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), T_ee_future (B, T, 4, 4) = T_ee_target; `history`:
-        `render_history(images, T_world_ee)` if already computed.
+        `render_history(images, T_world_ee)` if already computed; K (B, C, 3, 3) per-sample intrinsics or None.
         Returns a dict:
             obs_rgb, obs_points (B, H, C, 3, h, w); future_rgb, future_points (B, T, C, 3, h, w), or the selected
                 patches' pixels (B, T, C, 3, N = K*p*p) with `gripper_patches` > 0: the network's inputs;
@@ -508,10 +511,10 @@ class RnDModel(nn.Module):
         b = T_world_ee.shape[0]
         t = T_ee_future.shape[1]
         if history is None:
-            history = self.render_history(images, T_world_ee)
+            history = self.render_history(images, T_world_ee, K)
         T_world_ee_now = T_world_ee[:, -1:]
         fut_rgb_r, fut_mask, fut_points, T_cam_obj, T_world_cam = self.render_frames(
-            T_world_ee_now @ T_ee_future, T_world_ee_now.expand(b, t, 4, 4)
+            T_world_ee_now @ T_ee_future, T_world_ee_now.expand(b, t, 4, 4), K
         )
         obs_rgb, obs_points = history["obs_rgb"], history["obs_points"]
         current = images[:, -1:].expand(-1, t, -1, -1, -1, -1)
@@ -559,12 +562,14 @@ class RnDModel(nn.Module):
         return displacement, None if update is None else update.float(), logits.float()
 
     def noisy_sample_targets(
-        self, images: Tensor, T_world_ee: Tensor, gripper: Tensor, T_ee_target: Tensor, generator=None
+        self, images: Tensor, T_world_ee: Tensor, gripper: Tensor, T_ee_target: Tensor, generator=None,
+        K: Tensor | None = None,
     ) -> dict:
         """Noise a ground-truth chunk, render it, and compute the training targets (used by training and by
         the statistics estimate).
 
-        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper (B, H), T_ee_target (B, T, 4, 4).
+        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper (B, H), T_ee_target (B, T, 4, 4); K
+        (B, C, 3, 3) per-sample intrinsics of shifted images, or None.
         Returns the `_network_inputs` dict plus k (B,), a_gt / a_noisy (B, T, 6) normalised, and
         displacement (B, T, C, 3, N): the metric image-space target F_gt = T(a_gt, a_noisy) P - P at the
         predicted pixels (meaningful on `target_mask`).
@@ -578,7 +583,7 @@ class RnDModel(nn.Module):
         a_noisy = self.noise_scheduler.add_noise(a_gt, eps, k).clamp(-1, 1)
         T_ee_noisy = pose_from_action(self.action_stats.unnormalize(a_noisy))
         with torch.no_grad():
-            inputs = self._network_inputs(images, T_world_ee, gripper, T_ee_noisy)
+            inputs = self._network_inputs(images, T_world_ee, gripper, T_ee_noisy, K=K)
             T_world_cam = inputs["T_world_cam"]
             T_cam_target = invert_transform(T_world_cam) @ (T_world_ee[:, -1:, None] @ T_ee_target[:, :, None])
             displacement = displacement_target(inputs["target_points"], inputs["T_cam_obj"], T_cam_target)
@@ -599,7 +604,10 @@ class RnDModel(nn.Module):
         images, T_world_ee, gripper = self.prepare_observation(images, state)
         b, t = action.shape[:2]
         T_ee_target, gripper_target = self.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
-        sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target)
+        K = None
+        if self.training and cfg.image_shift_augment > 0:
+            images, K = shift_images_and_intrinsics(images, self.rig.K, cfg.image_shift_augment)
+        sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target, K=K)
         a_gt, a_noisy = sample["a_gt"], sample["a_noisy"]
         displacement, update, logits = self._run_network(self.network, sample, gripper, sample["k"], a_noisy)
 
