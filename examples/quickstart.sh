@@ -35,16 +35,34 @@ lerobot-eval --policy.path="$OUT/train/checkpoints/last/pretrained_model" \
 t3=$(date +%s)
 
 python - "$OUT" "$t0" "$t1" "$t2" "$t3" "$TASK" "$EPISODES" "$STEPS" <<'PY'
-import json, os, platform, sys
+import json, os, platform, subprocess, sys
 out, t0, t1, t2, t3, task, episodes, steps = sys.argv[1], *map(int, sys.argv[2:6]), *sys.argv[6:]
 info = json.load(open(f"{out}/eval/eval_info.json"))
 succ = [bool(s) for s in info["per_task"][0]["metrics"]["successes"]]
+
+
+def code_commit():
+    try:
+        return subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return None
+
+
+def cpu_model():
+    try:
+        with open("/proc/cpuinfo") as f:
+            return next(line.split(":", 1)[1].strip() for line in f if line.startswith("model name"))
+    except (OSError, StopIteration):
+        return platform.processor() or platform.machine()
+
+
 summary = {
     "command": f"TASK={task} EPISODES={episodes} STEPS={steps} bash examples/quickstart.sh",
     "task": task, "demos": int(episodes), "steps": int(steps), "eval_episodes": len(succ),
     "successes": sum(succ), "success_rate": sum(succ) / len(succ),
     "seconds": {"record": t1 - t0, "train": t2 - t1, "eval": t3 - t2, "total": t3 - t0},
-    "machine": {"cpus": os.cpu_count(), "cpu": platform.processor() or platform.machine()},
+    "machine": {"cpus": os.cpu_count(), "cpu": cpu_model()},
+    "code_commit": code_commit(),
 }
 json.dump(summary, open(f"{out}/summary.json", "w"), indent=1)
 print(f"Success {summary['successes']}/{len(succ)} on {task}; total {summary['seconds']['total']} s "
