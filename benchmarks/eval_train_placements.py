@@ -1,0 +1,101 @@
+#!/usr/bin/env python
+"""Does a trained benchmark policy reproduce its own demonstrations? Evaluate it on its training placements.
+
+A policy that fails on new placements may generalise badly (few demos) or may not even fit its demos
+(underfitting, or a mismatch between training and inference). This script tells the two apart: it replays the
+placements of the run's recorded demos (the successful attempts in the dataset's `meta/rnd_recording.json`, in
+episode order) with `run_benchmark.py _grid_eval` (lerobot-eval's loop, one episode per placement) and writes
+success and MetaWorld's max reward per episode. These are training placements, not evaluation seeds: nothing is
+tuned on the benchmark's test set.
+
+    python benchmarks/eval_train_placements.py --methods rnd_ai,act --tasks reach-v3 \
+        --out benchmarks/results/cpu/train_placements.json
+
+Runs are read from the CPU benchmark's work dir (`outputs/benchmark/cpu`, random protocol, 10 demos, seed 0);
+an evaluation whose `eval_info.json` exists is not repeated. MetaWorld's reach reward is 10 inside the 5 cm
+success radius and falls off with the distance beyond it, so a max reward of 9-9.99 means "came close".
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+from benchmarks.harness.files import _read_json, _rel, _write_json  # noqa: E402
+from benchmarks.harness.grid_eval import grid_eval_argv  # noqa: E402
+from benchmarks.harness.reports import wilson_interval  # noqa: E402
+
+
+def training_placements(dataset_root: Path) -> list[list[float]]:
+    """The placements of the dataset's episodes, in episode order (from the recorder's log)."""
+    rec = _read_json(dataset_root / "meta" / "rnd_recording.json")
+    if rec is None:
+        raise FileNotFoundError(f"{dataset_root}/meta/rnd_recording.json: record the dataset with lerobot-rnd-record")
+    kept = sorted((a for a in rec["attempts"] if a.get("success")), key=lambda a: a["episode_index"])
+    return [a["placement"] for a in kept]
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--methods", default="rnd_ai,act")
+    p.add_argument("--tasks", default="reach-v3")
+    p.add_argument("--work", default="outputs/benchmark/cpu", help="the CPU benchmark's work dir")
+    p.add_argument("--data", default="outputs/benchmark/data", help="where the benchmark recorded its datasets")
+    p.add_argument("--demos", type=int, default=10)
+    p.add_argument("--seed", type=int, default=0, help="training seed of the run")
+    p.add_argument("--record-seed", type=int, default=0)
+    p.add_argument("--checkpoint", default="last", help="checkpoint folder name (last, 001000, ...)")
+    p.add_argument("--extra", action="append", default=[], metavar="NAME=CHECKPOINT",
+                   help="also evaluate this pretrained_model folder (e.g. an ablation run on the same demos)")
+    p.add_argument("--out", default="benchmarks/results/cpu/train_placements.json")
+    a = p.parse_args(argv)
+    work, data = (REPO / a.work).resolve(), (REPO / a.data).resolve()
+    rows = []
+    for task in a.tasks.split(","):
+        root = data / f"mw_{task}_random_s{a.record_seed}_n{a.demos}"
+        placements = training_placements(root)
+        runs = []
+        for method in a.methods.split(","):
+            run = work / "runs" / "random" / method / task / f"n{a.demos}" / f"seed{a.seed}"
+            ckpt = run / "train" / "checkpoints" / a.checkpoint / "pretrained_model"
+            runs.append((method, ckpt, run / f"train_placements_{a.checkpoint}"))
+        for spec in a.extra:
+            name, _, path = spec.partition("=")
+            ckpt = (REPO / path).resolve()
+            runs.append((name, ckpt, ckpt.parents[2] / f"train_placements_{task}_{ckpt.parent.name}"))
+        for method, ckpt, out_dir in runs:
+            if not ckpt.exists():
+                print(f"skip {method} / {task}: no checkpoint at {_rel(ckpt)}")
+                continue
+            pl_file = out_dir / "placements.json"
+            argv_eval = grid_eval_argv(ckpt, "cpu", task, 300, 10, 0, pl_file, out_dir)
+            if not (out_dir / "eval_info.json").exists():
+                _write_json(pl_file, placements)
+                print(f"evaluating {method} / {task} on its {len(placements)} training placements ...", flush=True)
+                subprocess.run(argv_eval, check=True, cwd=REPO)
+            m = _read_json(out_dir / "eval_info.json")["per_task"][0]["metrics"]
+            k, n = sum(m["successes"]), len(m["successes"])
+            lo, hi = wilson_interval(k, n)
+            rows.append({"method": method, "task": task, "checkpoint": _rel(ckpt), "successes": k, "episodes": n,
+                         "success_rate": k / n, "ci95": [lo, hi], "per_episode_success": m["successes"],
+                         "max_rewards": m["max_rewards"], "placements": placements,
+                         "command": [str(x).replace(f"{REPO}/", "") for x in argv_eval]})  # fmt: skip
+    print(f"\n{'method':<10}{'task':<28}{'success on training placements':>32}  max rewards")
+    for r in rows:
+        print(f"{r['method']:<10}{r['task']:<28}{r['successes']:>4}/{r['episodes']:<3} ({r['ci95'][0]:.0%}-"
+              f"{r['ci95'][1]:.0%})".ljust(70) + " ".join(f"{x:.2f}" for x in r["max_rewards"]))
+    out = {"description": __doc__.strip().splitlines()[0],
+           "command": "python benchmarks/eval_train_placements.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+           "rows": rows}  # fmt: skip
+    _write_json(REPO / a.out, out)
+    print(f"wrote {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
