@@ -6,6 +6,7 @@ Nothing in that section is typed by hand: it is rebuilt from
   benchmarks/results/train_step_cpu.json    benchmarks/bench_train_step.py (where a training step goes)
   benchmarks/results/cpu/results.json       benchmarks/run_benchmark.py --scale cpu (success vs ACT / DP)
   benchmarks/results/ablation_cpu.json      benchmarks/run_ablation.py (validation seeds, reach-v3)
+  benchmarks/results/cpu/train_placements.json  benchmarks/eval_train_placements.py (do policies fit their demos?)
   benchmarks/results/quickstart*_cpu.json   examples/quickstart.sh's summary.json, copied (one per task)
   benchmarks/results/inference_cpu_tier.json  benchmarks/bench_inference.py --configs cpu (chunk latency)
   benchmarks/results/device_check_*.json    benchmarks/device_check.py (GPU lease)
@@ -137,6 +138,28 @@ def ablation_section(res: dict) -> list[str]:
     return lines
 
 
+def train_placements_section(res: dict) -> list[str]:
+    lines = [
+        "### Do the policies fit their own demos? (training placements)",
+        "",
+        f"`{res['command']}` ([`train_placements.json`](../benchmarks/results/cpu/train_placements.json)): each "
+        "policy replays the placements of the demos it was trained on, one episode each. MetaWorld's reach reward "
+        "is 10 inside the 5 cm success radius and drops with the distance beyond it (9.3 is about 7 cm, 9.9 about "
+        "6 cm from the goal).",
+        "",
+        "| policy | task | checkpoint | success | 95% interval | max reward per episode |",
+        "| --- | --- | --- | ---: | --- | --- |",
+    ]
+    for r in res["rows"]:
+        lo, hi = r["ci95"]
+        ckpt = "/".join(Path(r["checkpoint"]).parts[-2:-1])
+        lines.append(
+            f"| {r['method']} | {r['task']} | {ckpt} | {r['successes']}/{r['episodes']} | {100 * lo:.0f}–{100 * hi:.0f}% "
+            f"| {' '.join(f'{x:.2f}' for x in r['max_rewards'])} |"
+        )
+    return lines
+
+
 def quickstart_section(results: list[tuple[str, dict]]) -> list[str]:
     lines = ["### Quickstart", ""]
     for name, res in results:
@@ -191,6 +214,9 @@ def main() -> int:
             src = RESULTS / "cpu" / f"{name}.png"
             if src.exists():
                 shutil.copy(src, REPO / "docs" / "images" / f"cpu_{name}.png")
+    fit = _load(RESULTS / "cpu" / "train_placements.json")
+    if fit:
+        parts += train_placements_section(fit) + [""]
     abl = _load(RESULTS / "ablation_cpu.json")
     if abl:
         parts += ablation_section(abl) + [""]
