@@ -180,6 +180,23 @@ def test_cpu_scale_uses_the_cpu_configs(tmp_path):
     assert all("--policy.device=cpu" in c and "--steps=2000" in c for c in train.values())
     ev = [c for c in cmds if "lerobot-eval" in c and "rnd_ai/" in c]
     assert len(ev) == 5 and "--seed=1000" in ev[0] and "--seed=1040" in ev[-1]  # 50 episodes in chunks of 10
+    # LeRobot refuses a flag given twice, and DP's config must accept the horizon the harness passes (its U-Net
+    # needs a multiple of 2 ** len(down_dims); 12 with the CPU config's 3 levels failed at the first step).
+    for c in train.values():
+        keys = [t.partition("=")[0] for t in c.split() if t.startswith("--")]
+        assert len(keys) == len(set(keys)), c
+    from lerobot.policies.diffusion.configuration_diffusion import DiffusionConfig
+
+    dp_flags = dict(t[len("--policy."):].partition("=")[::2] for t in train["diffusion"].split() if t.startswith("--policy."))
+    dp_json = json.loads((REPO / "policies_config" / "metaworld" / "diffusion_cpu.json").read_text())["policy"]
+    DiffusionConfig(horizon=int(dp_flags.get("horizon", dp_json["horizon"])), down_dims=tuple(dp_json["down_dims"]),
+                    n_obs_steps=int(dp_flags["n_obs_steps"]), n_action_steps=int(dp_flags["n_action_steps"]))
+
+
+def test_override_flags_keeps_the_last_value_of_each_key():
+    from benchmarks.harness.runs import override_flags
+
+    assert override_flags(["--a=1", "--b=2", "--a=3", "--c"]) == ["--b=2", "--a=3", "--c"]
 
 
 def test_a_committed_run_result_is_skipped_on_a_fresh_work_dir(tmp_path):

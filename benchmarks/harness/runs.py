@@ -25,6 +25,13 @@ HARNESS_VERSION = 1
 EXIT_OK, EXIT_FAILED, EXIT_MORE = 0, 1, 3
 
 
+def override_flags(args: list[str]) -> list[str]:
+    """Keep only the last `--key=value` of each key (later, more specific flags override earlier ones), in the
+    position of that last occurrence. LeRobot's parser does not accept a flag twice."""
+    last = {a.partition("=")[0]: i for i, a in enumerate(args)}
+    return [a for i, a in enumerate(args) if last[a.partition("=")[0]] == i]
+
+
 class Benchmark:
     def __init__(self, a: argparse.Namespace):
         self.a = a
@@ -172,7 +179,7 @@ class Benchmark:
             who, _, arg = spec.partition(":")
             if who in ("all", method, fam):
                 args.append(arg)
-        return args
+        return override_flags(args)
 
     def train_argv(self, method: str, task: str, n: int, seed: int, out_dir: Path) -> list[str]:
         a = self.a

@@ -52,7 +52,8 @@ SCALES["cpu"] = dict(
     # MetaWorld (51.6M, mostly its ResNet-18), DP with a [128, 256, 512] U-Net (29.5M incl. its ResNet-18).
     config_files={"rnd_ai": "rnd_ai_cpu.json", "rnd_a": "rnd_ai_cpu.json", "rnd_i": "rnd_ai_cpu.json",
                   "act": "act_cpu.json", "diffusion": "diffusion_cpu.json"},
-    method_args={"rnd": [], "act": [], "diffusion": [],
+    # DP's U-Net halves the horizon once per level: 3 levels need a multiple of 8 (its config's 16, not 12).
+    method_args={"rnd": [], "act": [], "diffusion": ["--policy.horizon=16"],
                  "rnd_a": ["--policy.variant=A"], "rnd_i": ["--policy.variant=I"]},
 )
 # Applied at every scale: matched horizons, no downloads, no Hub.
