@@ -29,6 +29,18 @@ OPT_OUT_ENV = "LEROBOT_RND_DATASET_QUERY"  # set to "upstream" to keep LeRobot's
 _log = logging.getLogger(__name__)
 
 
+def _column_view(dataset, key: str):
+    """`dataset.hf_dataset` restricted to column `key` (same torch transform), cached per Hugging Face dataset
+    object: building the view costs about 0.5 ms, a third of reading an 8-row action chunk through it."""
+    views = dataset.__dict__.get("_rnd_column_views")
+    if views is None or views[0] is not dataset.hf_dataset:
+        views = (dataset.hf_dataset, {})
+        dataset.__dict__["_rnd_column_views"] = views
+    if key not in views[1]:
+        views[1][key] = dataset.hf_dataset.select_columns([key])
+    return views[1][key]
+
+
 def query_hf_dataset_column_first(self, query_indices: dict[str, list[int]]) -> dict:
     """`LeRobotDataset._query_hf_dataset`, selecting each key's column before its rows.
 
@@ -44,7 +56,7 @@ def query_hf_dataset_column_first(self, query_indices: dict[str, list[int]]) -> 
             else [self._absolute_to_relative_idx[idx] for idx in q_idx]
         )
         try:
-            rows = self.hf_dataset.select_columns([key])[relative_indices]
+            rows = _column_view(self, key)[relative_indices]
             result[key] = torch.stack(rows[key])
         except (KeyError, TypeError, IndexError, ValueError):  # what upstream falls back to, row first
             result[key] = torch.stack(self.hf_dataset[relative_indices][key])

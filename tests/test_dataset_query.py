@@ -103,3 +103,11 @@ def test_other_lerobot_versions_keep_their_own_query(upstream_and_patched, monke
     monkeypatch.setattr(dataset_query.metadata, "version", lambda name: "0.5.0")
     assert dataset_query.install_column_first_queries() is False
     assert LeRobotDataset._query_hf_dataset is upstream
+
+
+def test_column_views_follow_a_replaced_hf_dataset(toy_dataset_root):
+    ds, _ = _dataset(toy_dataset_root)
+    first = dataset_query._column_view(ds, "action")
+    assert dataset_query._column_view(ds, "action") is first  # cached
+    ds.hf_dataset = ds.hf_dataset.select(range(len(ds.hf_dataset)))  # what LeRobot does after adding episodes
+    assert dataset_query._column_view(ds, "action") is not first
