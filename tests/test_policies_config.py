@@ -13,7 +13,8 @@ def test_config_parses_as_a_train_config(path):
     import lerobot.policies  # noqa: F401  (registers ACT and Diffusion Policy)
     from lerobot.configs.train import TrainPipelineConfig
 
-    import lerobot_rnd  # noqa: F401  (registers rnd and rnd_mw)
+    import lerobot_rnd  # noqa: F401  (registers rnd)
+    import lerobot_rnd.sim  # noqa: F401  (registers rnd_mw; the core does not import the simulators)
 
     cfg = draccus.parse(TrainPipelineConfig, str(path), args=[])
     assert cfg.policy is not None and cfg.policy.type in {"rnd", "act", "diffusion"}
