@@ -145,8 +145,7 @@ def train_placements_section(res: dict) -> list[str]:
         f"`{res['command']}` ([`train_placements.json`](../benchmarks/results/cpu/train_placements.json)): each "
         "policy replays the placements of the demos it was trained on, one episode each. MetaWorld's reach reward "
         "is 10 inside the 5 cm success radius and 10 / (1 + (3 (d - 5 cm) / m)^2) at a distance d beyond it, m being "
-        "the hand's start-to-goal distance (23-33 cm here): 9.3 is about 7.5 cm, 9.9 about 6 cm from the goal. "
-        "The demos themselves end 1-4 cm from the goal (10 steps after their first success).",
+        "the hand's start-to-goal distance (23-33 cm here): 9.3 is about 7.5 cm, 9.9 about 6 cm from the goal.",
         "",
         "| policy | task | checkpoint | success | 95% interval | max reward per episode |",
         "| --- | --- | --- | ---: | --- | --- |",
