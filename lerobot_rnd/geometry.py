@@ -38,6 +38,7 @@ __all__ = [
     "pose_from_action",
     "action_from_pose",
     "weighted_rigid_registration",
+    "rigid_transform_from_moments",
     "check_finite",
     "check_rigid",
 ]
@@ -393,8 +394,8 @@ def weighted_rigid_registration(
     fixed-sweep Jacobi in plain tensor ops, free of host syncs (CUDA-graph capturable);
     "auto" = "svd" on CPU, "horn" elsewhere. Both solve the same problem.
     """
-    if method == "auto":
-        method = "svd" if src.device.type == "cpu" else "horn"
+    if method not in ("auto", "svd", "horn"):
+        raise ValueError(f"unknown method {method!r}")
     dtype = src.dtype
     w = weights.to(dtype).clamp_min(0)
     w = torch.where(torch.isfinite(w), w, torch.zeros_like(w))
@@ -418,8 +419,32 @@ def weighted_rigid_registration(
     else:
         tol_s = tol_d = torch.as_tensor(point_tol, dtype=dtype, device=src.device)
     one_point = (spread_s <= tol_s) | (spread_d <= tol_d)
-    # scale-normalise for conditioning (rotation is scale invariant)
     H = (xs * wn[..., None]).transpose(-1, -2) @ xd  # (...,3,3) = sum w xs xd^T
+    T = rigid_transform_from_moments(mu_s, mu_d, H, one_point, valid, method=method, jacobi_sweeps=jacobi_sweeps)
+    return T, valid
+
+
+def rigid_transform_from_moments(
+    mu_src: Tensor,
+    mu_dst: Tensor,
+    cross_cov: Tensor,
+    one_point: Tensor,
+    valid: Tensor,
+    method: str = "auto",
+    jacobi_sweeps: int = 8,
+) -> Tensor:
+    """The rigid transform T_dst_src (...,4,4) of `weighted_rigid_registration` from the weighted moments.
+
+    mu_src, mu_dst: (...,3) weighted centroids; cross_cov: (...,3,3) sum_i w_i (src_i - mu_src)(dst_i - mu_dst)^T
+    (any positive scale: only its direction matters); one_point: (...) bool, where the rotation is the identity
+    (translation from centroid to centroid); valid: (...) bool, the identity where False. Never NaN.
+    See `weighted_rigid_registration` for `method`.
+    """
+    if method == "auto":
+        method = "svd" if mu_src.device.type == "cpu" else "horn"
+    dtype = mu_src.dtype
+    # scale-normalise for conditioning (rotation is scale invariant)
+    H = cross_cov
     scale = H.abs().amax(dim=(-1, -2), keepdim=True)
     H = H / torch.where(scale > 0, scale, torch.ones_like(scale))
     H = torch.where(torch.isfinite(H), H, torch.zeros_like(H))
@@ -452,12 +477,11 @@ def weighted_rigid_registration(
     else:
         raise ValueError(f"unknown method {method!r}")
 
-    R = torch.where(one_point[..., None, None], torch.eye(3, dtype=dtype, device=src.device), R)
-    t = mu_d - (R @ mu_s[..., None])[..., 0]
+    R = torch.where(one_point[..., None, None], torch.eye(3, dtype=dtype, device=mu_src.device), R)
+    t = mu_dst - (R @ mu_src[..., None])[..., 0]
     T = make_transform(R, t)
-    eye = torch.eye(4, dtype=dtype, device=src.device).expand(T.shape)
-    T = torch.where(valid[..., None, None] & torch.isfinite(T).all(-1).all(-1)[..., None, None], T, eye)
-    return T, valid
+    eye = torch.eye(4, dtype=dtype, device=mu_src.device).expand(T.shape)
+    return torch.where(valid[..., None, None] & torch.isfinite(T).all(-1).all(-1)[..., None, None], T, eye)
 
 
 # ----------------------------------------------------------------------------------------

@@ -8,7 +8,7 @@ import torch
 from diffusers.schedulers.scheduling_ddim import DDIMScheduler
 from torch import Tensor
 
-from lerobot_rnd.geometry import invert_transform, weighted_rigid_registration
+from lerobot_rnd.geometry import invert_transform, rigid_transform_from_moments
 
 
 def make_noise_scheduler(num_train_timesteps: int, beta_schedule: str) -> DDIMScheduler:
@@ -85,44 +85,64 @@ def register_point_update(
 ) -> tuple[Tensor, Tensor]:
     """Rigid transform, in the world frame, that moves the rendered gripper from P_k to P_{k-1}.
 
-    All cameras are pooled: for each sample and horizon step one weighted SVD over every visible pixel.
-    points_k_cam, points_prev_cam: (B, T, C, 3, *pixels) camera-frame points (pixels: (H, W) or (N,));
-    mask: (B, T, C, *pixels) bool;
+    All cameras are pooled: for each sample and horizon step one weighted least-squares fit over every visible
+    pixel. points_k_cam, points_prev_cam: (B, T, C, 3, *pixels) camera-frame points (pixels: (H, W) or (N,));
+    mask: (B, T, C, *pixels) bool (points outside it may hold anything, NaN included);
     T_world_cam: (B, T, C, 4, 4). Returns (T_world_delta (B, T, 4, 4), valid (B, T) bool); valid is False
-    where fewer than `min_points` pixels are visible over all cameras, and T_world_delta is then the identity
-    (the caller falls back to the action space). Solved in float64 (world coordinates of a metre or more would
-    otherwise cost about 1e-6 m of float32 precision); returned in the input dtype. Degenerate point sets
-    follow `weighted_rigid_registration`; visible points that differ only by the input dtype's rounding (in
-    camera or world coordinates) count as one point: translation only.
+    where fewer than max(3, `min_points`) pixels are visible over all cameras, and T_world_delta is then the
+    identity (the caller falls back to the action space). Returned in the input dtype.
+
+    The pixels are reduced once, per camera and in the camera frame, to their weighted moments (count, centroid,
+    cross-covariance: one matrix product in float64), which are then moved into the world frame and pooled: the
+    same solution as registering the world points themselves (`weighted_rigid_registration`), without building
+    them. Degenerate point sets follow `weighted_rigid_registration`; visible points that differ only by the input
+    dtype's rounding (in camera or world coordinates) count as one point: translation only.
     """
-    b, t, c = mask.shape[:3]
     dtype = points_k_cam.dtype
-    points_k_cam, points_prev_cam = points_k_cam.double(), points_prev_cam.double()
+    p, q = points_k_cam.flatten(4), points_prev_cam.flatten(4)
+    x = torch.empty((*p.shape[:-2], 7, p.shape[-1]), dtype=torch.float64, device=p.device)
+    x[..., :3, :], x[..., 3:6, :], x[..., 6, :] = p, q, 1.0
+    x.masked_fill_(~mask.flatten(3)[..., None, :], 0.0)  # (B, T, C, 7, N): [p; q; 1] at visible pixels, else 0
+    moments = torch.einsum("...in,...jn->...ij", x, x)  # (B, T, C, 7, 7); the weights are 0/1, so w = w^2
+    count_c = moments[..., 6, 6]  # (B, T, C)
+    sum_p, sum_q = moments[..., :3, 6], moments[..., 3:6, 6]  # (B, T, C, 3)
+    S_pq = moments[..., :3, 3:6]  # sum w p q^T
+    sq_p = torch.diagonal(moments[..., :3, :3], dim1=-2, dim2=-1).sum(-1)  # sum w |p|^2
+    sq_q = torch.diagonal(moments[..., 3:6, 3:6], dim1=-2, dim2=-1).sum(-1)
+    # per camera, centred in the camera frame
+    safe_c = count_c.clamp_min(1.0)[..., None]
+    mu_p_c, mu_q_c = sum_p / safe_c, sum_q / safe_c  # (B, T, C, 3)
+    cov_c = S_pq - count_c[..., None, None] * mu_p_c[..., :, None] * mu_q_c[..., None, :]
+    spread_p_c = (sq_p - count_c * mu_p_c.square().sum(-1)).clamp_min(0)  # sum w |p - mu_p_c|^2
+    spread_q_c = (sq_q - count_c * mu_q_c.square().sum(-1)).clamp_min(0)
+    # into the world frame, pooled over cameras
     rot = T_world_cam[..., :3, :3].double()
     trans = T_world_cam[..., :3, 3].double()
+    m_p = (rot @ mu_p_c[..., None])[..., 0] + trans  # (B, T, C, 3) world centroid of each camera's pixels
+    m_q = (rot @ mu_q_c[..., None])[..., 0] + trans
+    count = count_c.sum(-1)  # (B, T)
+    share = count_c / count.clamp_min(1.0)[..., None]  # (B, T, C)
+    mu_p = (share[..., None] * m_p).sum(-2)  # (B, T, 3)
+    mu_q = (share[..., None] * m_q).sum(-2)
+    dp, dq = m_p - mu_p[..., None, :], m_q - mu_q[..., None, :]
+    cross_cov = (
+        rot @ cov_c @ rot.transpose(-1, -2) + count_c[..., None, None] * dp[..., :, None] * dq[..., None, :]
+    ).sum(-3)  # (B, T, 3, 3) sum over every visible pixel of w (world_k - mu_p)(world_prev - mu_q)^T
+    spread_p = ((spread_p_c + count_c * dp.square().sum(-1)).sum(-1) / count.clamp_min(1.0)).sqrt()
+    spread_q = ((spread_q_c + count_c * dq.square().sum(-1)).sum(-1) / count.clamp_min(1.0)).sqrt()
 
-    def to_world(points: Tensor) -> Tensor:
-        flat = points.flatten(4)  # (B, T, C, 3, N)
-        world = torch.einsum("btcij,btcjn->btcni", rot, flat) + trans[..., None, :]
-        return world.reshape(b, t, -1, 3)  # (B, T, C*HW, 3)
+    def rms(sum_sq: Tensor) -> Tensor:  # (B, T, C) -> (B, T)
+        return (sum_sq.sum(-1) / count.clamp_min(1.0)).sqrt()
 
-    weights = mask.reshape(b, t, -1).to(points_k_cam.dtype)
-    world_k, world_prev = to_world(points_k_cam), to_world(points_prev_cam)
-
-    def max_norm(points: Tensor) -> Tensor:  # (B, T, C*N, 3) -> (B, T): largest |p| over the visible pixels
-        return torch.where(weights > 0, points.norm(dim=-1), 0.0).amax(-1)
-
-    def cam(points: Tensor) -> Tensor:
-        return points.flatten(4).transpose(-1, -2).reshape(b, t, -1, 3)
+    def world_sum_sq(sum_x: Tensor, sum_sq: Tensor) -> Tensor:  # sum w |R x + t|^2 per camera
+        return sum_sq + 2 * (trans * (rot @ sum_x[..., None])[..., 0]).sum(-1) + count_c * trans.square().sum(-1)
 
     # the inputs hold `dtype`'s rounding in camera coordinates, and in world coordinates through T_world_cam
-    scale = torch.maximum(max_norm(cam(points_k_cam)), max_norm(cam(points_prev_cam))) + torch.maximum(
-        max_norm(world_k), max_norm(world_prev)
+    scale = torch.maximum(rms(sq_p), rms(sq_q)) + torch.maximum(
+        rms(world_sum_sq(sum_p, sq_p)), rms(world_sum_sq(sum_q, sq_q))
     )
-    T_world_delta, valid = weighted_rigid_registration(
-        world_k, world_prev, weights, point_tol=32 * torch.finfo(dtype).eps * scale
-    )
-    valid = valid & (weights.sum(-1) >= min_points)
-    eye = torch.eye(4, dtype=T_world_delta.dtype, device=T_world_delta.device)
-    T_world_delta = torch.where(valid[..., None, None], T_world_delta, eye)
+    tol = 32 * torch.finfo(dtype).eps * scale
+    one_point = (spread_p <= tol) | (spread_q <= tol)
+    valid = count >= max(3, min_points)
+    T_world_delta = rigid_transform_from_moments(mu_p, mu_q, cross_cov, one_point, valid)
     return T_world_delta.to(dtype), valid

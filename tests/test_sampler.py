@@ -66,6 +66,13 @@ def test_register_point_update_pools_cameras_and_flags_invisible_steps():
     expected_valid[1, 2] = False
     assert torch.equal(valid, expected_valid)
     np.testing.assert_allclose(got[valid].numpy(), T_delta[valid].numpy(), atol=1e-6)
+    # pixels outside the mask may hold anything (NaN, huge values): same result
+    junk_k, junk_prev = to_cam(pts_world).clone(), to_cam(moved_world).clone()
+    junk_k.masked_fill_(~mask[:, :, :, None], float("nan"))
+    junk_prev.masked_fill_(~mask[:, :, :, None], 1e30)
+    got_junk, valid_junk = register_point_update(junk_k, junk_prev, mask, T_world_cam, min_points=3)
+    assert torch.equal(valid_junk, valid)
+    np.testing.assert_allclose(got_junk.numpy(), got.numpy(), atol=1e-12)
 
 
 def _exact_displacement(model, future_points, T_world_ee_now, T_ee_from, T_ee_to):
