@@ -173,6 +173,7 @@ RESUME_MISMATCHES = {
     "other-task": (["--task", "push-v3"], False, ["--task reach-v3 (not push-v3)"]),
     "other-image-size": (["--image-size", "64"], False, ["--image-size 32 (not 64)"]),
     "other-cameras": (["--cameras", "corner2"], False, ["--cameras corner2,behindGripper (not corner2)"]),
+    "other-expert": (["--expert-reach-target", "hand"], False, ["--expert-reach-target tcp (not hand)"]),
     "other-suite": (
         ["--suite", "panda", "--task", "lift-cube"], False,
         ["--suite metaworld (not panda)", "--task reach-v3 (not lift-cube)", "--cameras corner2,behindGripper (not front,wrist)"],
@@ -201,6 +202,20 @@ def test_resume_with_other_settings_names_them(two_episodes, capsys, case):
     line = one_error_line(capsys.readouterr().err)
     for word in ["--resume:", "another --root", *words]:
         assert word in line, line
+    assert folder_state(two_episodes) == before
+
+
+@needs_gl
+def test_resume_of_a_recording_older_than_the_expert_fix_names_its_expert(two_episodes, capsys):
+    """A log written before `expert_reach_target` existed was recorded by MetaWorld's own policy ("hand")."""
+    log_path = two_episodes / rec.RECORDING_FILE
+    log = json.loads(log_path.read_text())
+    del log["settings"]["expert_reach_target"]
+    log_path.write_text(json.dumps(log))
+    before = folder_state(two_episodes)
+    assert rec.main(cli(two_episodes, "--task", "reach-v3", "--episodes", "3", "--resume")) == 2
+    line = one_error_line(capsys.readouterr().err)
+    assert "--expert-reach-target hand (not tcp)" in line, line
     assert folder_state(two_episodes) == before
 
 

@@ -134,6 +134,26 @@ def test_observation_layout_and_expert_success():
     env.close()
 
 
+@pytest.mark.parametrize("reach_target", ["tcp", "hand"])
+def test_reach_expert_puts_the_gripper_centre_on_the_goal(reach_target):
+    """MetaWorld's reach policy parks the hand on the goal, so the gripper's centre (where MetaWorld measures
+    success, radius 5 cm) stops about 4.5 cm away; reach_target="tcp" puts the centre on the goal. Reference:
+    MetaWorld's own `obj_to_target` (and its `tcp_center` against the goal it placed)."""
+    env = RnDMetaWorldEnv("reach-v3", observation_height=32, observation_width=32, episode_length=150,
+                          terminate_on_success=False)  # fmt: skip
+    ex = MetaWorldExpert("reach-v3", reach_target=reach_target)
+    env.reset(seed=5)
+    for _ in range(150):
+        env.step(ex.act(env))
+    dist = env.metaworld_info["obj_to_target"]
+    np.testing.assert_allclose(dist, np.linalg.norm(env.tcp_center - env.raw_observation[-3:]), atol=1e-6)
+    if reach_target == "tcp":
+        assert dist < 0.01, dist
+    else:
+        assert 0.03 < dist < 0.05, dist
+    env.close()
+
+
 def test_state_layout_with_mocap():
     env = RnDMetaWorldEnv("reach-v3", state_layout="pos_grip_quat_mocap", camera_names=("corner2",))
     obs, _ = env.reset(seed=0)

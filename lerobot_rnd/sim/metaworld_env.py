@@ -317,6 +317,7 @@ class RnDMetaWorldEnv(RnDMuJoCoEnv):
                 raise RuntimeError(f"{self.task}: no valid placement found in 1000 draws")
         self._placement = vec.copy()
         self._raw_obs = raw
+        self._metaworld_info = {}
         self._steps = 0
         obs = self._observation()
         return obs, {"is_success": False}
@@ -329,6 +330,7 @@ class RnDMetaWorldEnv(RnDMuJoCoEnv):
             raise RuntimeError("call reset() before step()")
         raw, reward, _, _, info = self._env.step(np.clip(action, -1.0, 1.0))
         self._raw_obs = raw
+        self._metaworld_info = dict(info)
         self._steps += 1
         is_success = bool(info.get("success", 0.0))
         terminated, truncated = self._episode_end(is_success)
@@ -345,6 +347,16 @@ class RnDMetaWorldEnv(RnDMuJoCoEnv):
     def raw_observation(self) -> np.ndarray:
         """MetaWorld's own 39-D observation (goal visible) for the scripted experts."""
         return self._raw_obs
+
+    @property
+    def tcp_center(self) -> np.ndarray:
+        """World position (3,) of the gripper's centre between the finger pads, where MetaWorld measures reach."""
+        return np.asarray(self._env.tcp_center, dtype=np.float64)
+
+    @property
+    def metaworld_info(self) -> dict:
+        """MetaWorld's own info dict of the last step (``obj_to_target``, ``success``, ...; empty after reset)."""
+        return getattr(self, "_metaworld_info", {})
 
     @property
     def success_now(self) -> bool:

@@ -63,7 +63,10 @@ RESUME_FLAGS = {
     "suite": "--suite", "task": "--task", "cameras": "--cameras", "image_size": "--image-size",
     "flip_cameras": "--flip-cameras", "lerobot_corner2_pos": "--metaworld-corner2-pos",
     "state_layout": "--state-layout", "placements": "--placements", "seed": "--seed", "fps_pool": "--fps-pool",
+    "expert_reach_target": "--expert-reach-target",
 }  # fmt: skip
+#: the value of a setting in a recording log written before the setting existed
+LEGACY_SETTINGS = {"suite": "metaworld", "expert_reach_target": "hand"}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -200,6 +203,7 @@ class RecordSettings:
     max_steps: int = 300
     extra_steps: int = 10
     noise_std: float = 0.0
+    expert_reach_target: str = "tcp"
     max_attempts: int | None = None
     resume: bool = False
     image_writer_threads: int = 2
@@ -322,7 +326,7 @@ def _metaworld_env(s: RecordSettings):
         )
     except ValueError as e:  # the env's checks of its cameras (the other settings are checked before)
         raise SettingError(f"{e} (check --cameras and --flip-cameras)") from e
-    return env, MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed), METAWORLD_FPS, "sawyer"
+    return env, MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed, reach_target=s.expert_reach_target), METAWORLD_FPS, "sawyer"
 
 
 def _panda_env(s: RecordSettings):
@@ -407,7 +411,7 @@ def _prepare_resume(s: RecordSettings, root: Path, features: dict) -> tuple[dict
     rec_path = root / RECORDING_FILE
     if rec_path.exists():
         log = json.loads(rec_path.read_text())
-        old = {k: log["settings"].get(k, "metaworld" if k == "suite" else None) for k in RESUME_FLAGS}
+        old = {k: log["settings"].get(k, LEGACY_SETTINGS.get(k)) for k in RESUME_FLAGS}
         diff = [k for k in RESUME_FLAGS if old[k] != getattr(s, k)]
         if diff:
             what = ", ".join(
@@ -679,6 +683,11 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings | None:
         default=d.noise_std,
         help="std of Gaussian noise on the expert's motion (xyz; panda: xyz and rotation)",
     )
+    p.add_argument(
+        "--expert-reach-target", choices=["tcp", "hand"], default=d.expert_reach_target,
+        help="MetaWorld reach tasks: put the gripper's centre on the goal (tcp, default) or the hand, as "
+        "MetaWorld's own policy does (hand: its demos end about 4.5 cm from the goal, 5 cm counts as success)",
+    )  # fmt: skip
     p.add_argument("--max-attempts", type=int, default=None)
     p.add_argument("--resume", action="store_true", help="add episodes to an existing dataset")
     p.add_argument(
@@ -701,7 +710,7 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings | None:
         task=task, episodes=a.episodes, root=a.root, repo_id=a.repo_id, placements=a.placements, seed=a.seed,
         fps_pool=a.fps_pool, image_size=a.image_size, cameras=cameras, flip_cameras=split(a.flip_cameras),
         lerobot_corner2_pos=not a.metaworld_corner2_pos, state_layout=a.state_layout, max_steps=max_steps,
-        extra_steps=a.extra_steps, noise_std=a.noise, max_attempts=a.max_attempts, resume=a.resume,
+        extra_steps=a.extra_steps, noise_std=a.noise, expert_reach_target=a.expert_reach_target, max_attempts=a.max_attempts, resume=a.resume,
         image_writer_threads=a.image_writer_threads, suite=a.suite,
     )  # fmt: skip
 
