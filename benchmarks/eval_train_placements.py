@@ -5,7 +5,8 @@ A policy that fails on new placements may generalise badly (few demos) or may no
 (underfitting, or a mismatch between training and inference). This script tells the two apart: it replays the
 placements of the run's recorded demos (the successful attempts in the dataset's `meta/rnd_recording.json`, in
 episode order) with `run_benchmark.py _grid_eval` (lerobot-eval's loop, one episode per placement) and writes
-success and MetaWorld's max reward per episode. These are training placements, not evaluation seeds: nothing is
+success and MetaWorld's max reward per episode. It also replays the demos' own recorded actions, so the policy can be
+compared with how close the demonstrator itself came (MetaWorld's `obj_to_target` at the demo's last frame). These are training placements, not evaluation seeds: nothing is
 tuned on the benchmark's test set.
 
     python benchmarks/eval_train_placements.py --methods rnd_ai,act --tasks reach-v3 \
@@ -40,6 +41,36 @@ def training_placements(dataset_root: Path) -> list[list[float]]:
     return [a["placement"] for a in kept]
 
 
+def replay_demos(dataset_root: Path, task: str) -> list[dict]:
+    """Replay each recorded demo's actions from its placement (MetaWorld is deterministic) and measure how
+    close the demonstrator itself came: per episode the max reward, and MetaWorld's ``obj_to_target`` (for
+    reach: the distance from the gripper's centre to the goal, m) at the last frame and its minimum."""
+    import numpy as np
+    import pyarrow.parquet as pq
+
+    from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
+
+    table = pq.read_table(sorted((dataset_root / "data").glob("*/*.parquet")), columns=["episode_index", "action"])
+    episodes = np.asarray(table.column("episode_index").to_pylist())
+    actions = np.asarray(table.column("action").to_pylist(), dtype=np.float32)
+    env = RnDMetaWorldEnv(task, observation_height=32, observation_width=32, episode_length=500,
+                          terminate_on_success=False)  # fmt: skip
+    out = []
+    try:
+        for ep, placement in enumerate(training_placements(dataset_root)):
+            env.reset(options={"placement": placement})
+            rewards, dist = [], []
+            for action in actions[episodes == ep]:
+                _, reward, _, _, _ = env.step(action)
+                rewards.append(reward)
+                dist.append(float(env.metaworld_info.get("obj_to_target", float("nan"))))
+            out.append({"episode_index": ep, "frames": len(rewards), "max_reward": max(rewards),
+                        "final_obj_to_target_m": dist[-1], "min_obj_to_target_m": min(dist)})  # fmt: skip
+    finally:
+        env.close()
+    return out
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--methods", default="rnd_ai,act")
@@ -55,10 +86,11 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="benchmarks/results/cpu/train_placements.json")
     a = p.parse_args(argv)
     work, data = (REPO / a.work).resolve(), (REPO / a.data).resolve()
-    rows = []
+    rows, demos = [], {}
     for task in a.tasks.split(","):
         root = data / f"mw_{task}_random_s{a.record_seed}_n{a.demos}"
         placements = training_placements(root)
+        demos[task] = replay_demos(root, task)
         runs = []
         for method in a.methods.split(","):
             run = work / "runs" / "random" / method / task / f"n{a.demos}" / f"seed{a.seed}"
@@ -85,13 +117,17 @@ def main(argv=None) -> int:
                          "success_rate": k / n, "ci95": [lo, hi], "per_episode_success": m["successes"],
                          "max_rewards": m["max_rewards"], "placements": placements,
                          "command": [str(x).replace(f"{REPO}/", "") for x in argv_eval]})  # fmt: skip
+    for task, eps in demos.items():
+        print(f"\n{task}: the demos themselves (recorded actions replayed), final gripper-goal distance (cm): "
+              + " ".join(f"{100 * e['final_obj_to_target_m']:.1f}" for e in eps))
+        print("  max rewards: " + " ".join(f"{e['max_reward']:.2f}" for e in eps))
     print(f"\n{'method':<10}{'task':<28}{'success on training placements':>32}  max rewards")
     for r in rows:
         print(f"{r['method']:<10}{r['task']:<28}{r['successes']:>4}/{r['episodes']:<3} ({r['ci95'][0]:.0%}-"
               f"{r['ci95'][1]:.0%})".ljust(70) + " ".join(f"{x:.2f}" for x in r["max_rewards"]))
     out = {"description": __doc__.strip().splitlines()[0],
            "command": "python benchmarks/eval_train_placements.py " + " ".join(argv if argv is not None else sys.argv[1:]),
-           "rows": rows}  # fmt: skip
+           "rows": rows, "demos": demos}  # fmt: skip
     _write_json(REPO / a.out, out)
     print(f"wrote {a.out}")
     return 0

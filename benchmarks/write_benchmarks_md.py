@@ -7,6 +7,7 @@ Nothing in that section is typed by hand: it is rebuilt from
   benchmarks/results/cpu/results.json       benchmarks/run_benchmark.py --scale cpu (success vs ACT / DP)
   benchmarks/results/ablation_cpu.json      benchmarks/run_ablation.py (validation seeds, reach-v3)
   benchmarks/results/cpu/train_placements.json  benchmarks/eval_train_placements.py (do policies fit their demos?)
+  benchmarks/results/cpu_reach_hand_expert/   reach-v3 runs on the earlier demos (MetaWorld's hand-target expert)
   benchmarks/results/quickstart*_cpu.json   examples/quickstart.sh's summary.json, copied (one per task)
   benchmarks/results/inference_cpu_tier.json  benchmarks/bench_inference.py --configs cpu (chunk latency)
   benchmarks/results/device_check_*.json    benchmarks/device_check.py (GPU lease)
@@ -138,18 +139,26 @@ def ablation_section(res: dict) -> list[str]:
     return lines
 
 
-def train_placements_section(res: dict) -> list[str]:
+def train_placements_section(res: dict, rel: str) -> list[str]:
     lines = [
         "### Do the policies fit their own demos? (training placements)",
         "",
-        f"`{res['command']}` ([`train_placements.json`](../benchmarks/results/cpu/train_placements.json)): each "
+        f"`{res['command']}` ([`{Path(rel).name}`](../{rel})): each "
         "policy replays the placements of the demos it was trained on, one episode each. MetaWorld's reach reward "
         "is 10 inside the 5 cm success radius and 10 / (1 + (3 (d - 5 cm) / m)^2) at a distance d beyond it, m being "
-        "the hand's start-to-goal distance (23-33 cm here): 9.3 is about 7.5 cm, 9.9 about 6 cm from the goal.",
+        "the start-to-goal distance (23-33 cm here): 9.3 is about 7.5 cm, 9.9 about 6 cm from the goal. The "
+        "*demonstrator* row replays the demos' own recorded actions: how close the expert itself came.",
         "",
         "| policy | task | checkpoint | success | 95% interval | max reward per episode |",
         "| --- | --- | --- | ---: | --- | --- |",
     ]
+    for task, eps in (res.get("demos") or {}).items():
+        final = " ".join(f"{100 * e['final_obj_to_target_m']:.1f}" for e in eps)
+        rewards = " ".join(f"{e['max_reward']:.2f}" for e in eps)
+        lines.append(
+            f"| demonstrator (recorded actions) | {task} | – | – | – | {rewards}; "
+            f"gripper-goal distance at the last frame (cm): {final} |"
+        )
     for r in res["rows"]:
         lo, hi = r["ci95"]
         ckpt = "/".join(Path(r["checkpoint"]).parts[-2:-1])
@@ -157,6 +166,24 @@ def train_placements_section(res: dict) -> list[str]:
             f"| {r['method']} | {r['task']} | {ckpt} | {r['successes']}/{r['episodes']} | {100 * lo:.0f}–{100 * hi:.0f}% "
             f"| {' '.join(f'{x:.2f}' for x in r['max_rewards'])} |"
         )
+    return lines
+
+
+def hand_expert_section(res: dict, fit: dict | None) -> list[str]:
+    lines = [
+        "### reach-v3 on the earlier demos (MetaWorld's own reach policy; superseded)",
+        "",
+        res["description"] + " JSON: [`benchmarks/results/cpu_reach_hand_expert/`](../benchmarks/results/cpu_reach_hand_expert/).",
+        "",
+        "| method | task | success | 95% interval | episodes |",
+        "| --- | --- | ---: | --- | ---: |",
+    ]
+    for r in res["runs"]:
+        lo, hi = r["ci95"]
+        lines.append(f"| {r['label']} | {r['task']} | {r['successes']}/{r['eval_episodes']} | "
+                     f"{100 * lo:.0f}–{100 * hi:.0f}% | {r['eval_episodes']} |")  # fmt: skip
+    if fit:
+        lines += [""] + train_placements_section(fit, "benchmarks/results/cpu_reach_hand_expert/train_placements.json")[2:]
     return lines
 
 
@@ -216,7 +243,10 @@ def main() -> int:
                 shutil.copy(src, REPO / "docs" / "images" / f"cpu_{name}.png")
     fit = _load(RESULTS / "cpu" / "train_placements.json")
     if fit:
-        parts += train_placements_section(fit) + [""]
+        parts += train_placements_section(fit, "benchmarks/results/cpu/train_placements.json") + [""]
+    hand = _load(RESULTS / "cpu_reach_hand_expert" / "results_reach.json")
+    if hand:
+        parts += hand_expert_section(hand, _load(RESULTS / "cpu_reach_hand_expert" / "train_placements.json")) + [""]
     abl = _load(RESULTS / "ablation_cpu.json")
     if abl:
         parts += ablation_section(abl) + [""]

@@ -96,6 +96,7 @@ class Benchmark:
             info = _read_json(root / "meta" / "info.json", {}) or {}
             self.datasets[task][n] = {
                 "root": _rel(root), "repo_id": repo_id, "placements_mode": mode, "record_seed": a.record_seed,
+                "expert_reach_target": (rec.get("settings") or {}).get("expert_reach_target", "hand"),
                 "episodes": info.get("total_episodes"), "frames": info.get("total_frames"),
                 "placements": [x["placement"] for x in kept][:n],
                 "placement_indices": [x["placement_index"] for x in kept][:n],
