@@ -5,6 +5,7 @@ Nothing in that section is typed by hand: it is rebuilt from
 
   benchmarks/results/train_step_cpu.json    benchmarks/bench_train_step.py (where a training step goes)
   benchmarks/results/cpu/results.json       benchmarks/run_benchmark.py --scale cpu (success vs ACT / DP)
+  benchmarks/results/cpu_3000/results.json  the same at 3,000 training steps (--steps 3000 --out ...cpu_3000)
   benchmarks/results/ablation_cpu.json      benchmarks/run_ablation.py (validation seeds, reach-v3)
   benchmarks/results/cpu/train_placements.json  benchmarks/eval_train_placements.py (do policies fit their demos?)
   benchmarks/results/cpu_reach_hand_expert/   reach-v3 runs on the earlier demos (MetaWorld's hand-target expert)
@@ -66,14 +67,15 @@ def train_step_section(res: dict) -> list[str]:
     return lines
 
 
-def cpu_benchmark_section(res: dict) -> list[str]:
+def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -> list[str]:
     b = res["benchmark"]
     runs = res["runs"]
+    steps = res["settings"]["matched"]["steps"]
     lines = [
-        "### R&D vs ACT vs Diffusion Policy on MetaWorld (CPU scale)",
+        f"### R&D vs ACT vs Diffusion Policy on MetaWorld (CPU scale, {steps} training steps)",
         "",
         "`python benchmarks/run_benchmark.py --scale cpu --tasks " + ",".join(b["tasks"]) + " --methods "
-        + ",".join(b["methods"]) + f" --steps {res['settings']['matched']['steps']} --out benchmarks/results/cpu"
+        + ",".join(b["methods"]) + f" --steps {steps} --out benchmarks/results/{folder}"
         " [--resume]` (each run's exact lerobot-train / lerobot-eval commands are in its JSON)",
         "",
         f"{'Complete' if b['complete'] else '**Incomplete**: the runs listed as pending were not done in this session'}. "
@@ -82,15 +84,15 @@ def cpu_benchmark_section(res: dict) -> list[str]:
         f"{res['settings']['record_seed']}, evaluation seeds from {res['settings']['eval_seed']} "
         f"({res['settings']['eval_episodes_per_cell']} episodes per cell, {res['settings']['episode_length']}-step "
         "episodes, `lerobot-eval --env.type=rnd_mw`). Success rate with its Wilson 95% interval. JSON per run: "
-        "[`benchmarks/results/cpu/runs/`](../benchmarks/results/cpu/runs/); all runs: "
-        "[`benchmarks/results/cpu/results.json`](../benchmarks/results/cpu/results.json).",
+        f"[`benchmarks/results/{folder}/runs/`](../benchmarks/results/{folder}/runs/); all runs: "
+        f"[`benchmarks/results/{folder}/results.json`](../benchmarks/results/{folder}/results.json).",
         "",
         "| method | task | demos | success | 95% interval | episodes | params | train loop | eval | final loss |",
         "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
     ]
     notes = []
     for r in runs:
-        run_json = RESULTS / "cpu" / "runs" / f"{r['method']}__{r['task']}__n{r['demos']}__seed{r.get('seed', 0)}.json"
+        run_json = RESULTS / folder / "runs" / f"{r['method']}__{r['task']}__n{r['demos']}__seed{r.get('seed', 0)}.json"
         note = (_load(run_json) or {}).get("note")
         if note:
             notes.append(note)
@@ -111,11 +113,11 @@ def cpu_benchmark_section(res: dict) -> list[str]:
     lines += [""] + [f"[{i}] {n}" for i, n in enumerate(notes, 1)]
     lines += [
         "",
-        "![success per task](images/cpu_success_per_task.png)",
+        f"![success per task](images/{images}_success_per_task.png)",
         "",
         "Training loss curves (each method's own loss; did it flatten?):",
         "",
-        "![loss curves](images/cpu_loss_curves.png)",
+        f"![loss curves](images/{images}_loss_curves.png)",
     ]
     return lines
 
@@ -234,13 +236,14 @@ def main() -> int:
     inference = _load(RESULTS / "inference_cpu_tier.json")
     if inference:
         parts += inference_section(inference) + [""]
-    bench = _load(RESULTS / "cpu" / "results.json")
-    if bench:
-        parts += cpu_benchmark_section(bench) + [""]
-        for name in ("success_per_task", "loss_curves"):
-            src = RESULTS / "cpu" / f"{name}.png"
-            if src.exists():
-                shutil.copy(src, REPO / "docs" / "images" / f"cpu_{name}.png")
+    for folder in ("cpu", "cpu_3000"):
+        bench = _load(RESULTS / folder / "results.json")
+        if bench:
+            parts += cpu_benchmark_section(bench, folder, folder) + [""]
+            for name in ("success_per_task", "loss_curves"):
+                src = RESULTS / folder / f"{name}.png"
+                if src.exists():
+                    shutil.copy(src, REPO / "docs" / "images" / f"{folder}_{name}.png")
     fit = _load(RESULTS / "cpu" / "train_placements.json")
     if fit:
         parts += train_placements_section(fit, "benchmarks/results/cpu/train_placements.json") + [""]

@@ -504,12 +504,13 @@ class Benchmark:
             "matched": {
                 "observation_history": {"rnd": 2, "diffusion": 2, "act": "1 (LeRobot ACT accepts only 1)"},
                 "action_chunk_executed": 8, "rnd_chunk": 8, "act_chunk": 8,
-                "diffusion_horizon": "12 (1 past + 8 executed + 3 padding for the U-Net's 4x downsampling)",
+                "diffusion_horizon": next((x.split("=", 1)[1] for x in self.method_args("diffusion")
+                                           if x.startswith("--policy.horizon=")), "the config's"),
                 "batch_size": a.batch_size, "steps": a.steps, "seeds": a.seeds,
                 "pretrained_weights": "none: ACT's ImageNet ResNet-18 cannot be downloaded here "
                                       "(--policy.pretrained_backbone_weights=null); DP and R&D use none",
-                "optimiser": "each method's own LeRobot preset (R&D: AdamW 1e-4, cosine; ACT: AdamW 1e-4 as in "
-                             "policies_config/metaworld/act.json; DP: Adam 1e-4, cosine, 500 warm-up)",
+                "optimiser": "each method's own preset in its config file (config_files below): R&D AdamW with "
+                             "the config's optimizer_lr and cosine decay; ACT AdamW 1e-4; DP Adam 1e-4, cosine",
             },
             "method_args": {m: self.method_args(m) for m in a.methods},
             "config_files": {m: _rel(self.config_file(m)) for m in a.methods},
