@@ -75,7 +75,18 @@ def main(argv=None) -> int:
         sh([str(bindir / "lerobot-rnd-record"), "--task", "reach-v3", "--episodes", "10", "--root", str(DATA),
             "--repo-id", "local/mw_reach-v3_10", "--seed", "0"], WORK / "record.log")  # fmt: skip
     res = json.loads(OUT_JSON.read_text()) if OUT_JSON.exists() else {"rows": []}
+    rec_settings = json.loads((DATA / "meta" / "rnd_recording.json").read_text())["settings"]
+    expert = rec_settings.get("expert_reach_target", "hand")  # recordings older than the setting: MetaWorld's own
+    for row in res["rows"]:
+        row.setdefault("demos_expert_reach_target", expert)
     done = {r["name"] for r in res["rows"]}
+    res["description"] = (
+        "`python benchmarks/run_ablation.py` (R&D-AI CPU tier, 10 demos of reach-v3 recorded with seed 0, "
+        "validation seeds from 100: never the evaluation seeds). Rows sharing a checkpoint differ only in "
+        "the sampler. `demos_expert_reach_target` says which expert recorded the demos: 'hand' is MetaWorld's "
+        "own reach policy (demos end 3.4-4.9 cm from the goal), 'tcp' the corrected one."
+    )
+    OUT_JSON.write_text(json.dumps(res, indent=1))
     for name in a.rows.split(","):
         if name in done:
             continue
@@ -105,13 +116,9 @@ def main(argv=None) -> int:
             "final_loss": final_loss(run / "train.log"), "successes": sum(succ), "episodes": len(succ),
             "success_rate": sum(succ) / len(succ), "ci95": [lo, hi], "val_seeds": [a.val_seed, a.val_seed + len(succ) - 1],
             "per_episode_success": succ, "commands": {"train": train_cmd, "eval": eval_cmd},
+            "demos_expert_reach_target": expert,
             "seconds": round(time.time() - t0, 1),
         })  # fmt: skip
-        res["description"] = (
-            "`python benchmarks/run_ablation.py` (R&D-AI CPU tier, 10 demos of reach-v3 recorded with seed 0, "
-            "validation seeds from 100: never the evaluation seeds). Rows sharing a checkpoint differ only in "
-            "the sampler."
-        )
         OUT_JSON.write_text(json.dumps(res, indent=1))
         print(f"[{name}] {sum(succ)}/{len(succ)}; wrote {OUT_JSON}", flush=True)
     return 0

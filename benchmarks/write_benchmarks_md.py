@@ -128,13 +128,13 @@ def ablation_section(res: dict) -> list[str]:
         "",
         res.get("description", ""),
         "",
-        "| row | training switches | sampler switches | steps | final loss | success | 95% interval | episodes |",
-        "| --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
+        "| row | demos' expert | training switches | sampler switches | steps | final loss | success | 95% interval | episodes |",
+        "| --- | --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
     ]
     for row in res["rows"]:
         lo, hi = row["ci95"]
         lines.append(
-            f"| {row['name']} | `{row['train']}` | `{row['sampler']}` | {row['steps']} | "
+            f"| {row['name']} | {row.get('demos_expert_reach_target', '–')} | `{row['train']}` | `{row['sampler']}` | {row['steps']} | "
             f"{row['final_loss'] if row.get('final_loss') is not None else '–'} | {100 * row['success_rate']:.0f}% | "
             f"{100 * lo:.0f}–{100 * hi:.0f}% | {row['episodes']} |"
         )
