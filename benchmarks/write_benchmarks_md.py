@@ -222,6 +222,15 @@ def inference_section(res: dict) -> list[str]:
     for label, r in rows.items():
         ratio = f"{r['median_ms'] / act['median_ms']:.1f}x" if act else "–"
         lines.append(f"| {label} | {r['median_ms']:.0f} ms | {ratio} |")
+    breakdowns = res.get("rnd_breakdown") or []
+    if breakdowns:
+        lines += ["", "Where one R&D chunk goes (a separate timed pass with timers around the calls):", "",
+                  "| R&D config | render | network | SVD (registration) | other | total | calls per chunk (render / network / SVD) |",
+                  "| --- | ---: | ---: | ---: | ---: | ---: | --- |"]  # fmt: skip
+        for b in breakdowns:
+            c = b["calls_per_chunk"]
+            lines.append(f"| {b['config']} | {b['render_ms']:.0f} ms | {b['network_ms']:.0f} ms | {b['svd_ms']:.0f} ms | "
+                         f"{b['other_ms']:.0f} ms | {b['total_ms']:.0f} ms | {c['render']} / {c['network']} / {c['svd']} |")  # fmt: skip
     return lines
 
 
