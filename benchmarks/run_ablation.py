@@ -10,6 +10,8 @@ whose checkpoint exists is only evaluated.
     python benchmarks/run_ablation.py                       # every row (hours on 2 cores)
     python benchmarks/run_ablation.py --rows default,interpolate,ddim_points
     python benchmarks/write_benchmarks_md.py                # then rewrite docs/BENCHMARKS.md
+    python benchmarks/run_ablation.py --steps 3000 --data data/mw_reach-v3_10_tcp \
+        --out benchmarks/results/ablation_cpu_tcp_3000.json --rows default,shift_aug   # other demos / length
 
 Data: `lerobot-rnd-record --task reach-v3 --episodes 10 --root data/mw_reach-v3_10 --repo-id local/mw_reach-v3_10
 --seed 0` (recorded by this script when missing).
@@ -65,48 +67,55 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=1500)
     p.add_argument("--episodes", type=int, default=20)
     p.add_argument("--val-seed", type=int, default=100)
+    p.add_argument("--data", default=str(DATA.relative_to(REPO)),
+                   help="reach-v3 dataset (recorded with seed 0 when missing, by the current expert)")
+    p.add_argument("--out", default=str(OUT_JSON.relative_to(REPO)),
+                   help="results JSON; another file gets its own work folder outputs/ablation/<file stem>")
     a = p.parse_args(argv)
+    data, out_json = (REPO / a.data).resolve(), (REPO / a.out).resolve()
+    work = WORK if out_json == OUT_JSON else WORK / out_json.stem
+    repo_id = "local/mw_reach-v3_10" if data == DATA else f"local/{data.name}"
     if a.val_seed + a.episodes > 1000:
         p.error("validation seeds must stay below the benchmark's evaluation seeds (1000+)")
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"), "HF_HUB_OFFLINE": "1"}
     os.environ.update(env)
     bindir = Path(sys.executable).parent
-    if not DATA.exists():
-        sh([str(bindir / "lerobot-rnd-record"), "--task", "reach-v3", "--episodes", "10", "--root", str(DATA),
-            "--repo-id", "local/mw_reach-v3_10", "--seed", "0"], WORK / "record.log")  # fmt: skip
-    res = json.loads(OUT_JSON.read_text()) if OUT_JSON.exists() else {"rows": []}
-    rec_settings = json.loads((DATA / "meta" / "rnd_recording.json").read_text())["settings"]
+    if not data.exists():
+        sh([str(bindir / "lerobot-rnd-record"), "--task", "reach-v3", "--episodes", "10", "--root", str(data),
+            "--repo-id", repo_id, "--seed", "0"], work / "record.log")  # fmt: skip
+    res = json.loads(out_json.read_text()) if out_json.exists() else {"rows": []}
+    rec_settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
     expert = rec_settings.get("expert_reach_target", "hand")  # recordings older than the setting: MetaWorld's own
     for row in res["rows"]:
         row.setdefault("demos_expert_reach_target", expert)
     done = {r["name"] for r in res["rows"]}
     res["description"] = (
-        "`python benchmarks/run_ablation.py` (R&D-AI CPU tier, 10 demos of reach-v3 recorded with seed 0, "
+        f"`python benchmarks/run_ablation.py{'' if out_json == OUT_JSON else ' --out ' + a.out}` (R&D-AI CPU tier, 10 demos of reach-v3 recorded with seed 0, "
         "validation seeds from 100: never the evaluation seeds). Rows sharing a checkpoint differ only in "
         "the sampler. `demos_expert_reach_target` says which expert recorded the demos: 'hand' is MetaWorld's "
         "own reach policy (demos end 3.4-4.9 cm from the goal), 'tcp' the corrected one."
     )
-    OUT_JSON.write_text(json.dumps(res, indent=1))
+    out_json.write_text(json.dumps(res, indent=1))
     for name in a.rows.split(","):
         if name in done:
             continue
         train_args, ckpt_of, sampler_args = ROWS[name]
-        run = WORK / (ckpt_of or name)
+        run = work / (ckpt_of or name)
         ckpt = run / "train" / "checkpoints" / f"{a.steps:06d}" / "pretrained_model"
         train_cmd = [str(bindir / "lerobot-train"), "--config_path=policies_config/metaworld/rnd_ai_cpu.json",
-                     f"--dataset.root={DATA}", "--dataset.repo_id=local/mw_reach-v3_10", f"--steps={a.steps}",
+                     f"--dataset.root={data}", f"--dataset.repo_id={repo_id}", f"--steps={a.steps}",
                      "--save_freq=500", "--log_freq=50", f"--output_dir={run / 'train'}", *ROWS[ckpt_of or name][0]]  # fmt: skip
         t0 = time.time()
         if not ckpt.exists():
             print(f"[{name}] training {run.name} ...", flush=True)
             sh(train_cmd, run / "train.log")
-        eval_dir = WORK / name / f"val_{a.val_seed}"
+        eval_dir = work / name / f"val_{a.val_seed}"
         eval_cmd = [str(bindir / "lerobot-eval"), f"--policy.path={ckpt}", "--env.type=rnd_mw", "--env.task=reach-v3",
                     f"--eval.n_episodes={a.episodes}", "--eval.batch_size=10", "--policy.device=cpu",
                     f"--seed={a.val_seed}", f"--output_dir={eval_dir}", *sampler_args]  # fmt: skip
         if not (eval_dir / "eval_info.json").exists():
             print(f"[{name}] evaluating ...", flush=True)
-            sh(eval_cmd, WORK / name / "eval.log")
+            sh(eval_cmd, work / name / "eval.log")
         info = json.loads((eval_dir / "eval_info.json").read_text())
         succ = [bool(s) for s in info["per_task"][0]["metrics"]["successes"]]
         lo, hi = wilson_interval(sum(succ), len(succ))
@@ -119,8 +128,8 @@ def main(argv=None) -> int:
             "demos_expert_reach_target": expert,
             "seconds": round(time.time() - t0, 1),
         })  # fmt: skip
-        OUT_JSON.write_text(json.dumps(res, indent=1))
-        print(f"[{name}] {sum(succ)}/{len(succ)}; wrote {OUT_JSON}", flush=True)
+        out_json.write_text(json.dumps(res, indent=1))
+        print(f"[{name}] {sum(succ)}/{len(succ)}; wrote {out_json}", flush=True)
     return 0
 
 

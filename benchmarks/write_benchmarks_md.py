@@ -6,7 +6,7 @@ Nothing in that section is typed by hand: it is rebuilt from
   benchmarks/results/train_step_cpu.json    benchmarks/bench_train_step.py (where a training step goes)
   benchmarks/results/cpu/results.json       benchmarks/run_benchmark.py --scale cpu (success vs ACT / DP)
   benchmarks/results/cpu_3000/results.json  the same at 3,000 training steps (--steps 3000 --out ...cpu_3000)
-  benchmarks/results/ablation_cpu.json      benchmarks/run_ablation.py (validation seeds, reach-v3)
+  benchmarks/results/ablation_cpu*.json     benchmarks/run_ablation.py [--out ...] (validation seeds, reach-v3)
   benchmarks/results/cpu/train_placements.json  benchmarks/eval_train_placements.py (do policies fit their demos?)
   benchmarks/results/cpu_reach_hand_expert/   reach-v3 runs on the earlier demos (MetaWorld's hand-target expert)
   benchmarks/results/quickstart*_cpu.json   examples/quickstart.sh's summary.json, copied (one per task)
@@ -122,11 +122,11 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
     return lines
 
 
-def ablation_section(res: dict) -> list[str]:
+def ablation_section(res: dict, name: str) -> list[str]:
     lines = [
         "### Ablations and validation (reach-v3, validation seeds, not the evaluation seeds)",
         "",
-        res.get("description", ""),
+        res.get("description", "") + f" JSON: [`{name}`](../benchmarks/results/{name}).",
         "",
         "| row | demos' expert | training switches | sampler switches | steps | final loss | success | 95% interval | episodes |",
         "| --- | --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
@@ -259,9 +259,8 @@ def main() -> int:
     hand = _load(RESULTS / "cpu_reach_hand_expert" / "results_reach.json")
     if hand:
         parts += hand_expert_section(hand, _load(RESULTS / "cpu_reach_hand_expert" / "train_placements.json")) + [""]
-    abl = _load(RESULTS / "ablation_cpu.json")
-    if abl:
-        parts += ablation_section(abl) + [""]
+    for path in sorted(RESULTS.glob("ablation_cpu*.json")):
+        parts += ablation_section(_load(path), path.name) + [""]
     parts.append(END)
     text = DOC.read_text()
     block = "\n".join(parts)
