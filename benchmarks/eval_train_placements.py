@@ -20,7 +20,6 @@ success radius and falls off with the distance beyond it, so a max reward of 9-9
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
 from pathlib import Path

@@ -29,6 +29,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from benchmarks.harness.reports import wilson_interval  # noqa: E402
+from lerobot_rnd.sim.record import recorded_setting  # noqa: E402
 
 OUT_JSON = REPO / "benchmarks" / "results" / "ablation_cpu.json"
 WORK = REPO / "outputs" / "ablation"
@@ -85,7 +86,7 @@ def main(argv=None) -> int:
             "--repo-id", repo_id, "--seed", "0"], work / "record.log")  # fmt: skip
     res = json.loads(out_json.read_text()) if out_json.exists() else {"rows": []}
     rec_settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
-    expert = rec_settings.get("expert_reach_target", "hand")  # recordings older than the setting: MetaWorld's own
+    expert = recorded_setting(rec_settings, "expert_reach_target")
     for row in res["rows"]:
         row.setdefault("demos_expert_reach_target", expert)
     done = {r["name"] for r in res["rows"]}

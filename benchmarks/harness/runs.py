@@ -90,13 +90,15 @@ class Benchmark:
                                dry_run=a.dry_run)  # fmt: skip
                 if r.rc != 0:
                     raise RuntimeError(f"recording {root} failed (rc {r.rc}):\n{r.tail}")
+            from lerobot_rnd.sim.record import recorded_setting
+
             rec = _read_json(root / "meta" / "rnd_recording.json", {}) or {}
             kept = [x for x in rec.get("attempts", []) if x.get("success")]
             kept.sort(key=lambda x: x["episode_index"])
             info = _read_json(root / "meta" / "info.json", {}) or {}
             self.datasets[task][n] = {
                 "root": _rel(root), "repo_id": repo_id, "placements_mode": mode, "record_seed": a.record_seed,
-                "expert_reach_target": (rec.get("settings") or {}).get("expert_reach_target", "hand"),
+                "expert_reach_target": recorded_setting(rec.get("settings") or {}, "expert_reach_target"),
                 "episodes": info.get("total_episodes"), "frames": info.get("total_frames"),
                 "placements": [x["placement"] for x in kept][:n],
                 "placement_indices": [x["placement_index"] for x in kept][:n],

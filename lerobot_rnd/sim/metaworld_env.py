@@ -230,6 +230,7 @@ class RnDMetaWorldEnv(RnDMuJoCoEnv):
         self._lclaw = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, "leftclaw")
         self._rand_calls = 0
         self._raw_obs: np.ndarray | None = None
+        self._metaworld_info: dict = {}
 
         orig = self._env._get_state_rand_vec
 
@@ -356,7 +357,7 @@ class RnDMetaWorldEnv(RnDMuJoCoEnv):
     @property
     def metaworld_info(self) -> dict:
         """MetaWorld's own info dict of the last step (``obj_to_target``, ``success``, ...; empty after reset)."""
-        return getattr(self, "_metaworld_info", {})
+        return self._metaworld_info
 
     @property
     def success_now(self) -> bool:

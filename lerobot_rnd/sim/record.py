@@ -69,6 +69,11 @@ RESUME_FLAGS = {
 LEGACY_SETTINGS = {"suite": "metaworld", "expert_reach_target": "hand"}
 
 
+def recorded_setting(log_settings: dict, key: str):
+    """A setting of a recording log (``meta/rnd_recording.json``'s "settings"), or its value before it existed."""
+    return log_settings.get(key, LEGACY_SETTINGS.get(key))
+
+
 # --------------------------------------------------------------------------------------------------
 # user errors
 # --------------------------------------------------------------------------------------------------
@@ -326,7 +331,8 @@ def _metaworld_env(s: RecordSettings):
         )
     except ValueError as e:  # the env's checks of its cameras (the other settings are checked before)
         raise SettingError(f"{e} (check --cameras and --flip-cameras)") from e
-    return env, MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed, reach_target=s.expert_reach_target), METAWORLD_FPS, "sawyer"
+    expert = MetaWorldExpert(s.task, noise_std=s.noise_std, seed=s.seed, reach_target=s.expert_reach_target)
+    return env, expert, METAWORLD_FPS, "sawyer"
 
 
 def _panda_env(s: RecordSettings):
@@ -411,7 +417,7 @@ def _prepare_resume(s: RecordSettings, root: Path, features: dict) -> tuple[dict
     rec_path = root / RECORDING_FILE
     if rec_path.exists():
         log = json.loads(rec_path.read_text())
-        old = {k: log["settings"].get(k, LEGACY_SETTINGS.get(k)) for k in RESUME_FLAGS}
+        old = {k: recorded_setting(log["settings"], k) for k in RESUME_FLAGS}
         diff = [k for k in RESUME_FLAGS if old[k] != getattr(s, k)]
         if diff:
             what = ", ".join(
