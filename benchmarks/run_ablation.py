@@ -13,6 +13,11 @@ whose checkpoint exists is only evaluated.
     python benchmarks/run_ablation.py --steps 3000 --data data/mw_reach-v3_10_tcp \
         --out benchmarks/results/ablation_cpu_tcp_3000.json --rows default,shift_aug   # other demos / length
 
+A training row can reuse a checkpoint trained elsewhere with the same switches, steps and demos (e.g. by
+`run_benchmark.py --train-only --train-arg rnd:--policy.image_shift_augment=6`), so one training serves both the
+validation here and, once chosen, the benchmark's test seeds: `--checkpoint shift_aug=<pretrained_model dir>`.
+A checkpoint whose train_config.json differs from its row is refused.
+
 Data: `lerobot-rnd-record --task reach-v3 --episodes 10 --root data/mw_reach-v3_10 --repo-id local/mw_reach-v3_10
 --seed 0` (recorded by this script when missing).
 """
@@ -44,6 +49,8 @@ ROWS = {
     "embed_std_0.02": (["--policy.embedding_init_std=0.02"], None, []),
     "history_overlay": (["--policy.history_rgb_overlay=true"], None, []),
     "shift_aug": (["--policy.image_shift_augment=6"], None, []),  # +-6 px, principal point moved with them
+    # the regularisers the Diffusion Policy / research code train with, on top of the shift
+    "regularised": (["--policy.image_shift_augment=6", "--policy.use_ema=true", "--policy.dropout=0.1"], None, []),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
@@ -62,6 +69,26 @@ def final_loss(log: Path) -> float | None:
     return float(m[-1]) if m else None
 
 
+def check_reused_checkpoint(ckpt: Path, train_args: list[str], steps: int, data: Path) -> None:
+    """Refuse a --checkpoint whose training differs from the row's (switches, steps, demos)."""
+    cfg_path = ckpt / "train_config.json"
+    if not cfg_path.exists():
+        raise SystemExit(f"--checkpoint {ckpt}: no train_config.json (give a pretrained_model folder)")
+    cfg = json.loads(cfg_path.read_text())
+    problems = []
+    if cfg.get("steps") != steps:
+        problems.append(f"trained for {cfg.get('steps')} steps, not --steps {steps}")
+    if Path(cfg["dataset"]["root"]).resolve() != data:
+        problems.append(f"trained on {cfg['dataset']['root']}, not --data {data}")
+    for arg in train_args:
+        key, _, val = arg.removeprefix("--policy.").partition("=")
+        have = cfg["policy"].get(key)
+        if str(have).lower() != val.lower():
+            problems.append(f"policy.{key} is {have}, the row wants {val}")
+    if problems:
+        raise SystemExit(f"--checkpoint {ckpt} does not match its row: " + "; ".join(problems))
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--rows", default=",".join(ROWS))
@@ -72,7 +99,17 @@ def main(argv=None) -> int:
                    help="reach-v3 dataset (recorded with seed 0 when missing, by the current expert)")
     p.add_argument("--out", default=str(OUT_JSON.relative_to(REPO)),
                    help="results JSON; another file gets its own work folder outputs/ablation/<file stem>")
+    p.add_argument("--checkpoint", action="append", default=[], metavar="ROW=DIR",
+                   help="evaluate this existing pretrained_model folder for ROW instead of training it (e.g. the "
+                        "benchmark's run of the same config and demos); refused if its training differs")  # fmt: skip
     a = p.parse_args(argv)
+    reuse = {}
+    for spec in a.checkpoint:
+        row, sep, path = spec.partition("=")
+        if not sep or row not in ROWS or ROWS[row][1] is not None:
+            p.error(f"--checkpoint {spec!r}: expected ROW=DIR with ROW one of the training rows "
+                    f"{[r for r, v in ROWS.items() if v[1] is None]}")  # fmt: skip
+        reuse[row] = Path(path).resolve()
     data, out_json = (REPO / a.data).resolve(), (REPO / a.out).resolve()
     work = WORK if out_json == OUT_JSON else WORK / out_json.stem
     repo_id = "local/mw_reach-v3_10" if data == DATA else f"local/{data.name}"
@@ -103,11 +140,17 @@ def main(argv=None) -> int:
         train_args, ckpt_of, sampler_args = ROWS[name]
         run = work / (ckpt_of or name)
         ckpt = run / "train" / "checkpoints" / f"{a.steps:06d}" / "pretrained_model"
+        reused = reuse.get(ckpt_of or name)
+        if reused is not None:
+            check_reused_checkpoint(reused, ROWS[ckpt_of or name][0], a.steps, data)
+            ckpt = reused
         train_cmd = [str(bindir / "lerobot-train"), "--config_path=policies_config/metaworld/rnd_ai_cpu.json",
                      f"--dataset.root={data}", f"--dataset.repo_id={repo_id}", f"--steps={a.steps}",
                      "--save_freq=500", "--log_freq=50", f"--output_dir={run / 'train'}", *ROWS[ckpt_of or name][0]]  # fmt: skip
         t0 = time.time()
-        if not ckpt.exists():
+        if reused is not None:
+            train_cmd = None  # trained elsewhere: its own train_config.json is beside the weights
+        elif not ckpt.exists():
             print(f"[{name}] training {run.name} ...", flush=True)
             sh(train_cmd, run / "train.log")
         eval_dir = work / name / f"val_{a.val_seed}"
@@ -123,7 +166,8 @@ def main(argv=None) -> int:
         res["rows"].append({
             "name": name, "train": " ".join(train_args) or "(config defaults)",
             "sampler": " ".join(sampler_args) or "(config defaults)", "steps": a.steps,
-            "final_loss": final_loss(run / "train.log"), "successes": sum(succ), "episodes": len(succ),
+            "final_loss": final_loss(reused.parents[3] / "train.log" if reused else run / "train.log"),
+            "checkpoint": str(ckpt.relative_to(REPO)) if ckpt.is_relative_to(REPO) else str(ckpt), "successes": sum(succ), "episodes": len(succ),
             "success_rate": sum(succ) / len(succ), "ci95": [lo, hi], "val_seeds": [a.val_seed, a.val_seed + len(succ) - 1],
             "per_episode_success": succ, "commands": {"train": train_cmd, "eval": eval_cmd},
             "demos_expert_reach_target": expert,

@@ -105,6 +105,18 @@ def test_dry_run_commands(tmp_path):
         assert "--seed=1000" in c and "--env.type=rnd_mw" in c and "--eval.n_episodes=2" in c
 
 
+def test_train_only_trains_and_leaves_the_evaluation_for_later(tmp_path):
+    cmds = _dry_run(tmp_path, "--methods", "rnd_ai,act", "--train-only",
+                    "--train-arg", "rnd:--policy.image_shift_augment=6")  # fmt: skip
+    train = [c for c in cmds if "lerobot-train" in c]
+    assert len(train) == 2 and not [c for c in cmds if "lerobot-eval" in c]
+    rnd = next(c for c in train if "rnd_ai" in c)
+    assert "--policy.image_shift_augment=6" in rnd
+    assert "image_shift_augment" not in next(c for c in train if "act.json" in c)
+    with pytest.raises(SystemExit):
+        cli.parse_args(["--scale", "smoke", "--train-only", "--eval-only"])
+
+
 def test_dry_run_with_two_demo_counts_extends_the_smaller_dataset(tmp_path):
     """Used to crash: the dry run copied the smaller dataset, which it never records."""
     cmds = _dry_run(tmp_path, "--demos", "3,5", "--methods", "act")

@@ -57,6 +57,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--resume", action="store_true", help="continue the benchmark in --work-dir")
     p.add_argument("--retry-failed", action="store_true", help="with --resume: run failed runs again")
     p.add_argument("--eval-only", action="store_true", help="evaluate existing checkpoints, train nothing")
+    p.add_argument("--train-only", action="store_true",
+                   help="train (or finish training), evaluate nothing: e.g. to validate a checkpoint on other "
+                        "seeds first; a later --resume evaluates it")  # fmt: skip
     p.add_argument("--max-minutes", type=float, help="time budget of this invocation (exit 3 if work remains)")
     p.add_argument("--min-train-slice-s", type=float,
                    help="do not start a training slice with less time left (smoke 30, gpu 180); keep "
@@ -88,6 +91,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     a.grid_dims = _csv(a.grid_dims, int) if a.grid_dims else None
     if a.grid_dims is not None and len(a.grid_dims) != 2:
         p.error("--grid-dims takes two coordinates")
+    if a.train_only and a.eval_only:
+        p.error("--train-only and --eval-only exclude each other")
     if a.prune_optimizer is None:
         a.prune_optimizer = a.scale == "gpu"
     a.out = a.out or str(REPO_ROOT / "benchmarks" / "results" / a.scale)

@@ -426,6 +426,9 @@ class Benchmark:
         try:
             if not a.eval_only:
                 self.train(method, task, n, seed, st)
+            if a.train_only:
+                print(f"trained {method} / {task} / n{n}; evaluation left for a later --resume", flush=True)
+                return
             self.evaluate(method, task, n, seed, st)
             if not a.dry_run:
                 st["status"] = "done"

@@ -1,0 +1,44 @@
+"""benchmarks/run_ablation.py: a reused checkpoint (--checkpoint ROW=DIR) must have been trained as its row says."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from benchmarks.run_ablation import ROWS, check_reused_checkpoint, main
+
+
+def _checkpoint(tmp_path, steps=3000, root="demos", **policy):
+    ckpt = tmp_path / "ckpt"
+    ckpt.mkdir()
+    cfg = {"steps": steps, "dataset": {"root": str(tmp_path / root)},
+           "policy": {"image_shift_augment": 0, "use_ema": False, "dropout": 0.0, **policy}}  # fmt: skip
+    (ckpt / "train_config.json").write_text(json.dumps(cfg))
+    return ckpt
+
+
+def test_a_checkpoint_trained_as_the_row_says_is_accepted(tmp_path):
+    ckpt = _checkpoint(tmp_path, image_shift_augment=6, use_ema=True, dropout=0.1)
+    check_reused_checkpoint(ckpt, ROWS["regularised"][0], 3000, tmp_path / "demos")
+
+
+@pytest.mark.parametrize(
+    ("row", "policy", "steps", "root", "message"),
+    [
+        ("shift_aug", {}, 3000, "demos", "policy.image_shift_augment is 0, the row wants 6"),
+        ("regularised", {"image_shift_augment": 6, "use_ema": True}, 3000, "demos", "policy.dropout is 0.0"),
+        ("default", {}, 1500, "demos", "trained for 1500 steps, not --steps 3000"),
+        ("default", {}, 3000, "other", "not --data"),
+    ],
+)
+def test_a_checkpoint_trained_otherwise_is_refused(tmp_path, row, policy, steps, root, message):
+    ckpt = _checkpoint(tmp_path, steps=steps, root=root, **policy)
+    with pytest.raises(SystemExit, match=message):
+        check_reused_checkpoint(ckpt, ROWS[row][0], 3000, tmp_path / "demos")
+
+
+def test_checkpoint_flag_names_a_training_row(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        main(["--checkpoint", f"interpolate={tmp_path}", "--out", str(tmp_path / "a.json")])
+    assert "ROW one of the training rows" in capsys.readouterr().err
