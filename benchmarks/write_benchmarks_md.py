@@ -71,12 +71,18 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
     b = res["benchmark"]
     runs = res["runs"]
     steps = res["settings"]["matched"]["steps"]
+    command = b.get("command", "")
+    if "benchmarks/run_benchmark.py" in command:  # the invocation that wrote results.json, interpreter dropped
+        command = "python benchmarks/run_benchmark.py" + command.split("benchmarks/run_benchmark.py", 1)[1]
+    else:
+        command = ("python benchmarks/run_benchmark.py --scale cpu --tasks " + ",".join(b["tasks"]) + " --methods "
+                   + ",".join(b["methods"]) + f" --steps {steps} --out benchmarks/results/{folder} --resume")
+    switches = [arg for spec in b.get("train_arg") or [] for arg in [spec.partition(":")[2]]]
+    title = f"CPU scale, {steps} training steps" + (f", R&D trained with `{' '.join(switches)}`" if switches else "")
     lines = [
-        f"### R&D vs ACT vs Diffusion Policy on MetaWorld (CPU scale, {steps} training steps)",
+        f"### R&D vs ACT vs Diffusion Policy on MetaWorld ({title}): `benchmarks/results/{folder}`",
         "",
-        "`python benchmarks/run_benchmark.py --scale cpu --tasks " + ",".join(b["tasks"]) + " --methods "
-        + ",".join(b["methods"]) + f" --steps {steps} --out benchmarks/results/{folder}"
-        " [--resume]` (each run's exact lerobot-train / lerobot-eval commands are in its JSON)",
+        f"`{command}` (each run's exact lerobot-train / lerobot-eval commands are in its JSON)",
         "",
         f"{'Complete' if b['complete'] else '**Incomplete**: the runs listed as pending were not done in this session'}. "
         f"Written {b['written']}. {res['settings']['matched']['steps']} training steps of batch "
@@ -245,7 +251,7 @@ def main() -> int:
     inference = _load(RESULTS / "inference_cpu_tier.json")
     if inference:
         parts += inference_section(inference) + [""]
-    for folder in ("cpu", "cpu_3000"):
+    for folder in sorted(p.parent.name for p in RESULTS.glob("cpu*/results.json")):
         bench = _load(RESULTS / folder / "results.json")
         if bench:
             parts += cpu_benchmark_section(bench, folder, folder) + [""]

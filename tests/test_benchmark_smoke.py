@@ -232,3 +232,17 @@ def test_a_committed_run_result_is_skipped_on_a_fresh_work_dir(tmp_path):
     b.run_one("act", "reach-v3", 3, 0)
     runs = b.collect()
     assert runs[0]["status"] == "done" and runs[0]["successes"] == 1 and runs[0]["loss_curve"] == [[1, 0.5], [2, 0.4]]
+
+
+def test_resume_refuses_another_training_recipe(tmp_path):
+    """A results folder holds one recipe: resuming a --train-arg run without it (or with another) is refused
+    before anything runs, so a shift-augmented run is never reported as the plain config."""
+    common = ["--scale", "smoke", "--methods", "act", "--out", str(tmp_path / "o"), "--work-dir", str(tmp_path / "w"),
+              "--data-dir", str(tmp_path / "d"), "--resume"]  # fmt: skip
+    (tmp_path / "w").mkdir()
+    first = cli.parse_args([*common, "--train-arg", "rnd:--policy.image_shift_augment=6"])
+    (tmp_path / "w" / "state.json").write_text(json.dumps({"args": {"train_arg": first.train_arg}}))
+    b = Benchmark(cli.parse_args(common))
+    b.record = lambda task: (_ for _ in ()).throw(AssertionError("nothing may run"))
+    with pytest.raises(SystemExit, match="pass the same --train-arg"):
+        b.run()

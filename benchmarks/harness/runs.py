@@ -379,6 +379,10 @@ class Benchmark:
         if prev is not None and not a.resume and not a.dry_run:
             raise SystemExit(f"{self.work} holds an earlier benchmark: pass --resume to continue it, "
                              f"or choose another --out / --work-dir")  # fmt: skip
+        if prev is not None and a.resume and (prev.get("args", {}).get("train_arg") or None) != (a.train_arg or None):
+            raise SystemExit(
+                f"{self.work} was run with --train-arg {prev['args'].get('train_arg')}, this call has "
+                f"{a.train_arg}: pass the same --train-arg to --resume (one results folder, one training recipe)")  # fmt: skip
         if not a.dry_run:
             _write_json(self.state_path, {"args": vars(a), "started": self.started})
         print(f"benchmark: scale {a.scale}, protocol {a.protocol}, tasks {a.tasks}, demos {a.demos}, "
@@ -532,7 +536,7 @@ class Benchmark:
                 "scale": a.scale, "protocol": a.protocol, "tasks": a.tasks, "demos": a.demos, "methods": a.methods,
                 "seeds": a.seeds, "device": a.device, "complete": complete, "harness_version": HARNESS_VERSION,
                 "started": self.started, "written": dt.datetime.now().isoformat(timespec="seconds"),
-                "command": shlex.join([sys.executable, *sys.argv]),
+                "command": shlex.join([sys.executable, *sys.argv]), "train_arg": a.train_arg or [],
                 "host": {"platform": platform.platform(), "python": platform.python_version(),
                          "cpus": os.cpu_count(), "torch": torch.__version__, "lerobot": lerobot.__version__,
                          "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
