@@ -334,6 +334,7 @@ class RnDModel(nn.Module):
             use_point_map_input=config.use_point_map_input,
             gripper_patches=config.gripper_patches,
             embedding_init_std=config.embedding_init_std,
+            patch_embed=config.patch_embed,
         )
         self.ema_network = None
         if config.use_ema:

@@ -10,6 +10,8 @@ import torch
 import torch.nn.functional as F  # noqa: N812
 from torch import Tensor, nn
 
+from lerobot_rnd.configuration_rnd import PATCH_EMBEDS
+
 
 def sincos_2d_position_embedding(grid_h: int, grid_w: int, dim: int) -> Tensor:
     """Fixed 2-D sine-cosine patch position embedding (MAE style). Returns (grid_h * grid_w, dim)."""
@@ -82,6 +84,30 @@ class PerViewLinear(nn.Module):
         return torch.einsum("...ci,cio->...co", x, self.weight) + self.bias
 
 
+def patch_embedding(kind: str, n_views: int, out_per_view: int, patch_size: int) -> nn.Module:
+    """Per-view patch embedding (grouped over views): (B', C*3, h, w) -> (B', C*out_per_view, h/p, w/p).
+
+    "linear": one linear map per patch (kernel = stride = p), the ViT's. "conv": 4x4 then 2x2 then (p/8)x(p/8)
+    convolutions with kernel = stride and GELU between them, so a small feature (the goal marker) is detected
+    at 4-px resolution before the patch is pooled. Both are patch-local: a patch's token depends only on its
+    own pixels, so the selected gripper patches embed exactly as they would in the full image.
+    """
+    in_ch = 3 * n_views
+    if kind == "linear":
+        return nn.Conv2d(in_ch, n_views * out_per_view, patch_size, patch_size, groups=n_views)
+    if kind != "conv" or patch_size % 8:
+        raise ValueError(f"patch_embed must be one of {PATCH_EMBEDS} ('conv' needs a patch_size divisible by 8), "
+                         f"got {kind!r} with patch_size {patch_size}")  # fmt: skip
+    c1, c2 = max(out_per_view // 4, 8), max(out_per_view // 2, 8)
+    return nn.Sequential(
+        nn.Conv2d(in_ch, n_views * c1, 4, 4, groups=n_views),
+        nn.GELU(),
+        nn.Conv2d(n_views * c1, n_views * c2, 2, 2, groups=n_views),
+        nn.GELU(),
+        nn.Conv2d(n_views * c2, n_views * out_per_view, patch_size // 8, patch_size // 8, groups=n_views),
+    )
+
+
 class RnDDenoiser(nn.Module):
     """ViT that maps rendered observations to image-space displacements, action updates and gripper logits.
 
@@ -123,6 +149,7 @@ class RnDDenoiser(nn.Module):
         use_point_map_input: bool,
         gripper_patches: int = 0,
         embedding_init_std: float = 0.02,
+        patch_embed: str = "linear",
     ):
         super().__init__()
         self.n_views = n_views
@@ -141,9 +168,10 @@ class RnDDenoiser(nn.Module):
         self.future_patches = gripper_patches or self.n_patches  # tokens per future frame and view
         d = dim_model
 
-        # Per-view patch embeddings (grouped convolutions: one group per view), half width each.
+        # Per-view patch embeddings (grouped convolutions: one group per view), half width each; the point map
+        # (smooth, rendered) always takes the linear one.
         in_ch = 3 * n_views
-        self.rgb_patch_embed = nn.Conv2d(in_ch, n_views * d // 2, patch_size, patch_size, groups=n_views)
+        self.rgb_patch_embed = patch_embedding(patch_embed, n_views, d // 2, patch_size)
         self.point_patch_embed = (
             nn.Conv2d(in_ch, n_views * d // 2, patch_size, patch_size, groups=n_views)
             if use_point_map_input
@@ -181,14 +209,14 @@ class RnDDenoiser(nn.Module):
             (n_obs_steps * self.n_patches + horizon * self.future_patches) * n_views + self.n_frames + 2 + horizon
         )
 
-    def _patchify(self, images: Tensor, embed: nn.Conv2d) -> Tensor:
+    def _patchify(self, images: Tensor, embed: nn.Module) -> Tensor:
         """(B, F, C, 3, h, w) -> (B, F, C, P, D/2) with the view's own patch embedding."""
         b, f, c, _, h, w = images.shape
         x = embed(images.reshape(b * f, c * 3, h, w))  # (B*F, C*D/2, gh, gw)
         x = x.reshape(b, f, c, -1, self.n_patches)
         return x.transpose(-1, -2)
 
-    def _patchify_selected(self, pixels: Tensor, embed: nn.Conv2d) -> Tensor:
+    def _patchify_selected(self, pixels: Tensor, embed: nn.Module) -> Tensor:
         """Embed selected patches: pixels (B, T, C, 3, K*p*p) patch-major -> (B, T, C, K, D/2), with the same
         (per-view) weights as `_patchify`."""
         b, t, c, ch, n = pixels.shape

@@ -88,3 +88,28 @@ def test_image_loss_is_a_per_camera_mean_summed_over_cameras(toy_dataset_root):
     batch = _training_batch(toy_dataset_root, policy.config)
     _, info = policy.forward(batch)
     assert abs(info["image_loss"] - 1.0) < 1e-5, info
+
+
+def test_conv_patch_embedding_switch(toy_dataset_root, tmp_path):
+    """`patch_embed="conv"` builds the strided-conv RGB embedding (the point map keeps the linear one), trains,
+    and comes back from a checkpoint; a patch size it cannot split is refused, naming the field."""
+    import pytest
+
+    from lerobot_rnd.configuration_rnd import RnDConfig
+    from lerobot_rnd.modeling_rnd import RnDPolicy
+
+    policy, _ = _make_policy(toy_dataset_root, patch_embed="conv")
+    net = policy.model.network
+    assert isinstance(net.rgb_patch_embed, torch.nn.Sequential)
+    assert isinstance(net.point_patch_embed, torch.nn.Conv2d)
+    loss, _ = policy.forward(_training_batch(toy_dataset_root, policy.config))
+    loss.backward()
+    assert net.rgb_patch_embed[0].weight.grad.abs().sum() > 0
+    policy.save_pretrained(tmp_path / "ckpt")
+    loaded = RnDPolicy.from_pretrained(tmp_path / "ckpt")
+    assert loaded.config.patch_embed == "conv"
+    torch.testing.assert_close(loaded.model.network.rgb_patch_embed[0].weight, net.rgb_patch_embed[0].weight)
+    with pytest.raises(ValueError, match="`patch_embed`"):
+        RnDConfig(patch_embed="conv", patch_size=12, image_size=(96, 96))
+    with pytest.raises(ValueError, match="`patch_embed` must be one of"):
+        RnDConfig(patch_embed="mlp")

@@ -55,9 +55,10 @@ def _scatter(displacement, patch_index, net):
     return full.reshape(b, t, c, 3, h, w)
 
 
-def test_selecting_every_patch_reproduces_the_dense_model():
-    dense = _net(0)
-    sparse = _net(24)  # 4 x 6 patches per view: all of them
+@pytest.mark.parametrize("patch_embed", ["linear", "conv"])
+def test_selecting_every_patch_reproduces_the_dense_model(patch_embed):
+    dense = _net(0, patch_embed=patch_embed)
+    sparse = _net(24, patch_embed=patch_embed)  # 4 x 6 patches per view: all of them
     sparse.load_state_dict(dense.state_dict())
     x = _inputs()
     index = torch.arange(24).expand(2, 3, 2, 24)
@@ -68,8 +69,9 @@ def test_selecting_every_patch_reproduces_the_dense_model():
     torch.testing.assert_close(g_sparse, g_dense, atol=1e-5, rtol=1e-5)
 
 
-def test_gripper_patch_tokens_depend_only_on_the_selected_patches():
-    net = _net(3)
+@pytest.mark.parametrize("patch_embed", ["linear", "conv"])
+def test_gripper_patch_tokens_depend_only_on_the_selected_patches(patch_embed):
+    net = _net(3, patch_embed=patch_embed)
     rgb, pm, g, k, a = _inputs()
     index = torch.tensor([0, 7, 20]).expand(2, 3, 2, 3)
     d1, u1, _ = _call(net, rgb, pm, g, k, a, patch_index=index)
@@ -119,3 +121,25 @@ def test_embedding_initialisation_std(std):
 def test_token_count_with_gripper_patches():
     assert _net(0).n_tokens == (5 * 2 * 24) + 5 + 2 + 3
     assert _net(4).n_tokens == (2 * 2 * 24 + 3 * 2 * 4) + 5 + 2 + 3
+
+
+def test_conv_patch_embedding_is_patch_local_and_resolves_a_dot_inside_a_patch():
+    """'conv' is patch-local (a patch's token sees only its pixels) and, unlike any linear embedding, its token
+    for a red dot is not the sum of its tokens for the dot's halves: it is a nonlinear detector."""
+    from lerobot_rnd.network import patch_embedding
+
+    torch.manual_seed(0)
+    embed = patch_embedding("conv", n_views=1, out_per_view=16, patch_size=8)
+    img = torch.zeros(1, 3, 16, 16)
+    base = embed(img)
+    img2 = img.clone()
+    img2[0, 0, 2, 3] = 1.0  # top-left patch only
+    diff = (embed(img2) - base).abs()[0].sum(0)  # (2, 2) patch grid
+    assert diff[0, 0] > 0 and diff[0, 1] == 0 and diff[1, 0] == 0 and diff[1, 1] == 0
+    a, b, ab = img.clone(), img.clone(), img.clone()
+    a[0, 0, 2, 3] = b[0, 0, 5, 6] = 1.0
+    ab[0, 0, 2, 3] = ab[0, 0, 5, 6] = 1.0
+    nonlinear = (embed(ab) - embed(a) - embed(b) + base).abs().max()
+    assert nonlinear > 1e-4
+    with pytest.raises(ValueError, match="divisible by 8"):
+        patch_embedding("conv", 1, 16, 12)
