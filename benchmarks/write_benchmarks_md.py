@@ -128,6 +128,46 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
     return lines
 
 
+# Columns of MetaWorld's placement vector (rand_vec) that hold the goal, for tasks whose goal moves.
+GOAL_COLUMNS = {"reach-v3": slice(3, 6), "reach-wall-v3": slice(3, 6)}
+DISTANCE_BINS_CM = (0, 4, 6, 8, 100)
+
+
+def generalisation_section(res: dict, folder: str) -> list[str]:
+    """Success per evaluation episode against how far its goal lies from the nearest demonstration's goal."""
+    import numpy as np
+
+    lines = []
+    for task, cols in GOAL_COLUMNS.items():
+        runs = [r for r in res["runs"] if r["task"] == task and r.get("per_episode_success")]
+        if not runs:
+            continue
+        placements = np.asarray(res["eval_sets"][task]["placements"], dtype=float)[:, cols]
+        table = [
+            f"#### Where the goal lies: {task}, success by distance from the goal to the nearest demo goal "
+            f"(`benchmarks/results/{folder}`)",
+            "",
+            "How far each evaluation episode's goal is from the closest of the demonstrations' goals (the success "
+            "radius is 5 cm). A policy that only replays its nearest demonstration succeeds in the first bins.",
+            "",
+        ]
+        bins = list(zip(DISTANCE_BINS_CM[:-1], DISTANCE_BINS_CM[1:]))
+        heads = [f"{lo}-{hi} cm" if hi < 100 else f">= {lo} cm" for lo, hi in bins]
+        table += ["| method | demos | " + " | ".join(heads) + " |", "| --- | ---: |" + " ---: |" * len(bins)]
+        for r in runs:
+            train = np.asarray(res["datasets"][task][str(r["demos"])]["placements"], dtype=float)[:, cols]
+            near_cm = 100 * np.linalg.norm(placements[:, None] - train[None], axis=-1).min(1)
+            succ = np.asarray(r["per_episode_success"], dtype=bool)
+            near_cm = near_cm[: len(succ)]
+            cells = []
+            for lo, hi in bins:
+                m = (near_cm >= lo) & (near_cm < hi)
+                cells.append(f"{int(succ[m].sum())}/{int(m.sum())}")
+            table.append(f"| {r['label']} | {r['demos']} | " + " | ".join(cells) + " |")
+        lines += table + [""]
+    return lines
+
+
 def ablation_section(res: dict, name: str) -> list[str]:
     lines = [
         "### Ablations and validation (reach-v3, validation seeds, not the evaluation seeds)",
@@ -255,6 +295,7 @@ def main() -> int:
         bench = _load(RESULTS / folder / "results.json")
         if bench:
             parts += cpu_benchmark_section(bench, folder, folder) + [""]
+            parts += generalisation_section(bench, folder)
             for name in ("success_per_task", "loss_curves"):
                 src = RESULTS / folder / f"{name}.png"
                 if src.exists():
