@@ -91,6 +91,14 @@ def check_reused_checkpoint(ckpt: Path, train_args: list[str], steps: int, data:
         raise SystemExit(f"--checkpoint {ckpt} does not match its row: " + "; ".join(problems))
 
 
+def reused_train_command(ckpt: Path) -> list[str] | None:
+    """The lerobot-train command of a run_benchmark.py checkpoint (<run>/train/checkpoints/N/pretrained_model)."""
+    run_json = ckpt.parents[3] / "run.json"
+    if not run_json.exists():
+        return None
+    return json.loads(run_json.read_text()).get("commands", {}).get("train")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--rows", default=",".join(ROWS))
@@ -150,8 +158,8 @@ def main(argv=None) -> int:
                      f"--dataset.root={data}", f"--dataset.repo_id={repo_id}", f"--steps={a.steps}",
                      "--save_freq=500", "--log_freq=50", f"--output_dir={run / 'train'}", *ROWS[ckpt_of or name][0]]  # fmt: skip
         t0 = time.time()
-        if reused is not None:
-            train_cmd = None  # trained elsewhere: its own train_config.json is beside the weights
+        if reused is not None:  # trained elsewhere: take the command from its harness run.json if there is one
+            train_cmd = reused_train_command(reused)
         elif not ckpt.exists():
             print(f"[{name}] training {run.name} ...", flush=True)
             sh(train_cmd, run / "train.log")

@@ -42,3 +42,14 @@ def test_checkpoint_flag_names_a_training_row(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["--checkpoint", f"interpolate={tmp_path}", "--out", str(tmp_path / "a.json")])
     assert "ROW one of the training rows" in capsys.readouterr().err
+
+
+def test_a_reused_checkpoint_reports_the_command_that_trained_it(tmp_path):
+    from benchmarks.run_ablation import reused_train_command
+
+    ckpt = tmp_path / "run" / "train" / "checkpoints" / "003000" / "pretrained_model"
+    ckpt.mkdir(parents=True)
+    assert reused_train_command(ckpt) is None  # not a harness run: nothing to report
+    cmd = ["lerobot-train", "--policy.image_shift_augment=6"]
+    (tmp_path / "run" / "run.json").write_text(json.dumps({"commands": {"train": cmd}}))
+    assert reused_train_command(ckpt) == cmd
