@@ -84,6 +84,8 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
         "",
         f"`{command}` (each run's exact lerobot-train / lerobot-eval commands are in its JSON)",
         "",
+        (("Trained only (`--train-only`): validated on validation seeds in the ablation tables below and, not "
+          "chosen there, never evaluated on the evaluation seeds. ") if "--train-only" in command else "") +
         f"{'Complete' if b['complete'] else '**Incomplete**: the runs listed as pending were not done in this session'}. "
         f"Written {b['written']}. {res['settings']['matched']['steps']} training steps of batch "
         f"{res['settings']['matched']['batch_size']} for every method, demos recorded with seed "
@@ -104,7 +106,9 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
             notes.append(note)
             r = {**r, "label": f"{r['label']} [{len(notes)}]"}
         if not r["eval_episodes"]:
-            lines.append(f"| {r['label']} | {r['task']} | {r['demos']} | not run | | | | | | |")
+            curve = r.get("loss_curve") or []
+            final = f"{curve[-1][1]:.3f}" if curve else "–"
+            lines.append(f"| {r['label']} | {r['task']} | {r['demos']} | not evaluated | | | | | | {final} |")
             continue
         lo, hi = r["ci95"]
         curve = r.get("loss_curve") or []
@@ -170,7 +174,7 @@ def generalisation_section(res: dict, folder: str) -> list[str]:
 
 def ablation_section(res: dict, name: str) -> list[str]:
     lines = [
-        "### Ablations and validation (reach-v3, validation seeds, not the evaluation seeds)",
+        f"### Ablations and validation: `{name}` (reach-v3, validation seeds, not the evaluation seeds)",
         "",
         res.get("description", "") + f" JSON: [`{name}`](../benchmarks/results/{name}).",
         "",
