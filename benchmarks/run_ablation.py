@@ -26,6 +26,7 @@ import argparse
 import json
 import os
 import re
+import shlex
 import subprocess
 import sys
 import time
@@ -138,7 +139,8 @@ def main(argv=None) -> int:
         row.setdefault("demos_expert_reach_target", expert)
     done = {r["name"] for r in res["rows"]}
     res["description"] = (
-        f"`python benchmarks/run_ablation.py{'' if out_json == OUT_JSON else ' --out ' + a.out}` (R&D-AI CPU tier, 10 demos of reach-v3 recorded with seed 0, "
+        f"`python benchmarks/run_ablation.py{'' if out_json == OUT_JSON else ' --out ' + a.out} ...` (each row's "
+        "`ablation_command` has the whole call; R&D-AI CPU tier, 10 demos of reach-v3 recorded with seed 0, "
         "validation seeds from 100: never the evaluation seeds). Rows sharing a checkpoint differ only in "
         "the sampler. `demos_expert_reach_target` says which expert recorded the demos: 'hand' is MetaWorld's "
         "own reach policy (demos end 3.4-4.9 cm from the goal), 'tcp' the corrected one."
@@ -181,6 +183,7 @@ def main(argv=None) -> int:
             "success_rate": sum(succ) / len(succ), "ci95": [lo, hi], "val_seeds": [a.val_seed, a.val_seed + len(succ) - 1],
             "per_episode_success": succ, "commands": {"train": train_cmd, "eval": eval_cmd},
             "demos_expert_reach_target": expert,
+            "ablation_command": shlex.join(["python", "benchmarks/run_ablation.py", *(sys.argv[1:] if argv is None else argv)]),
             "seconds": round(time.time() - t0, 1),
         })  # fmt: skip
         out_json.write_text(json.dumps(res, indent=1))
