@@ -47,8 +47,9 @@ SCALES["cpu"] = dict(
     tasks="reach-v3,button-press-topdown-v3,drawer-close-v3", demos="10", device="cpu", steps=2000, batch_size=8,
     save_freq=250, log_freq=50, num_workers=2, eval_episodes=50, eval_chunk=10, eval_batch_size=10,
     episode_length=300, grid=5, min_train_slice_s=120,
-    # Each method at its own CPU size (policies_config/metaworld/*_cpu.json): R&D's CPU tier (patch 32,
-    # 4 gripper patches per future frame, width 256 x 4 layers, bf16 autocast: 6.5M), ACT as configured for
+    # Each method at its own CPU size (policies_config/metaworld/*_cpu.json): R&D's CPU tier (patch 32 with a
+    # strided-conv RGB patch embedding, 4 gripper patches per future frame, width 256 x 4 layers, bf16 autocast:
+    # 6.0M; 6.5M with the linear embedding used before), ACT as configured for
     # MetaWorld (51.6M, mostly its ResNet-18), DP with a [128, 256, 512] U-Net (29.5M incl. its ResNet-18).
     config_files={"rnd_ai": "rnd_ai_cpu.json", "rnd_a": "rnd_ai_cpu.json", "rnd_i": "rnd_ai_cpu.json",
                   "act": "act_cpu.json", "diffusion": "diffusion_cpu.json"},
