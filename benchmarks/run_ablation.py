@@ -51,6 +51,8 @@ ROWS = {
     "history_overlay": (["--policy.history_rgb_overlay=true"], None, []),
     "shift_aug": (["--policy.image_shift_augment=6"], None, []),  # +-6 px, principal point moved with them
     "conv_patch": (["--policy.patch_embed=conv"], None, []),  # strided-conv RGB patch embedding
+    "conv_interpolate": ([], "conv_patch", ["--policy.point_update=interpolate"]),
+    "conv_ddim_points": ([], "conv_patch", ["--policy.point_update=ddim"]),
     "shift_conv": (["--policy.image_shift_augment=6", "--policy.patch_embed=conv"], None, []),
     # the regularisers the Diffusion Policy / research code train with, on top of the shift
     "regularised": (["--policy.image_shift_augment=6", "--policy.use_ema=true", "--policy.dropout=0.1"], None, []),
