@@ -77,15 +77,15 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
     else:
         command = ("python benchmarks/run_benchmark.py --scale cpu --tasks " + ",".join(b["tasks"]) + " --methods "
                    + ",".join(b["methods"]) + f" --steps {steps} --out benchmarks/results/{folder} --resume")
-    switches = [arg for spec in b.get("train_arg") or [] for arg in [spec.partition(":")[2]]]
+    switches = [spec.partition(":")[2] for spec in b.get("train_arg") or []]
     title = f"CPU scale, {steps} training steps" + (f", R&D trained with `{' '.join(switches)}`" if switches else "")
     lines = [
         f"### R&D vs ACT vs Diffusion Policy on MetaWorld ({title}): `benchmarks/results/{folder}`",
         "",
         f"`{command}` (each run's exact lerobot-train / lerobot-eval commands are in its JSON)",
         "",
-        (("Trained only (`--train-only`): validated on validation seeds in the ablation tables below and, not "
-          "chosen there, never evaluated on the evaluation seeds. ") if "--train-only" in command else "") +
+        (("Trained only (`--train-only`): not evaluated on the evaluation seeds; its validation-seed result, if "
+          "any, is in the ablation tables below. ") if "--train-only" in command else "") +
         f"{'Complete' if b['complete'] else '**Incomplete**: the runs listed as pending were not done in this session'}. "
         f"Written {b['written']}. {res['settings']['matched']['steps']} training steps of batch "
         f"{res['settings']['matched']['batch_size']} for every method, demos recorded with seed "
