@@ -144,7 +144,8 @@ class RnDConfig(PreTrainedConfig):
             step) and sample with it at evaluation.
         ema_decay: Maximum EMA decay; the decay warms up as min(ema_decay, (1 + n) / (10 + n)) after n updates.
         autocast_bf16: Run the network under bfloat16 autocast (rendering, SVD and losses stay float32). About
-            1.7x faster on CPUs with AVX-512 bf16 and on GPUs.
+            1.7x faster on CPUs with AVX-512 bf16 and on GPUs. Ignored (float32, one warning) on CPUs without
+            native bf16, where emulated bf16 is ~19x slower: `lerobot_rnd.precision`.
         inference_compile: On CUDA, compile the denoising loop with `torch.compile` ("reduce-overhead": CUDA
             graphs over static-shape rendering) for fast inference; same actions as eager up to floating-point
             error. Ignored on CPU, where tracing takes longer than it saves.

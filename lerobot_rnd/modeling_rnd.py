@@ -11,7 +11,6 @@ import copy
 import logging
 import warnings
 from collections import deque
-from contextlib import nullcontext
 from pathlib import Path
 
 import torch
@@ -32,6 +31,7 @@ from lerobot_rnd.embodiment_binding import (
 )
 from lerobot_rnd.geometry import action_from_pose, invert_transform, pose_from_action
 from lerobot_rnd.network import RnDDenoiser, gather_patch_pixels, patch_pixel_index, select_gripper_patches
+from lerobot_rnd.precision import bf16_autocast
 from lerobot_rnd.rendering import Rasterizer
 from lerobot_rnd.sampler import (
     ddim_step,
@@ -418,9 +418,8 @@ class RnDModel(nn.Module):
         return self.network
 
     def _autocast(self, device_type: str):
-        if not self.config.autocast_bf16:
-            return nullcontext()
-        return torch.autocast(device_type=device_type, dtype=torch.bfloat16)
+        """bf16 autocast for the network when `autocast_bf16` and the device runs bf16 natively (precision.py)."""
+        return bf16_autocast(self.config.autocast_bf16, device_type)
 
     # ------------------------------------------------------------------------------------------------
     # Observation preparation.
