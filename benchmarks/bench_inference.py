@@ -56,11 +56,23 @@ ACTION_DIM = 4
 N_OBS_STEPS = 2
 CHUNK = 8
 
+CPU_TIER_JSON = REPO_ROOT / "policies_config" / "metaworld" / "rnd_ai_cpu.json"
+# Keys of a policies_config JSON's "policy" section that are about deployment or the dataset, not the model: the
+# benchmark sets its own (device, observation history and chunk come from the constants above).
+NOT_MODEL_KEYS = ("type", "device", "push_to_hub", "n_obs_steps", "chunk_size", "n_action_steps", "image_size")
+
+
+def policy_config_overrides(path: Path = CPU_TIER_JSON) -> dict:
+    """The RnDConfig fields a policies_config JSON sets (its "policy" section without NOT_MODEL_KEYS), so the
+    benchmark times the CPU tier that `lerobot-train --config_path=...` trains, not a copy that drifts."""
+    policy = json.loads(path.read_text())["policy"]
+    return {k: v for k, v in policy.items() if k not in NOT_MODEL_KEYS}
+
+
 RND_CONFIGS = {
     "paper": {},  # RnDConfig defaults
-    # policies_config/metaworld/rnd_ai_cpu.json: patch 32, 4 gripper patches per future frame, bf16 autocast.
-    "cpu": {"dim_model": 256, "n_layers": 4, "n_heads": 8, "patch_size": 32, "gripper_patches": 4,
-            "autocast_bf16": True},
+    # policies_config/metaworld/rnd_ai_cpu.json as it is now (patch 32, gripper patches, bf16, its patch_embed).
+    "cpu": policy_config_overrides(),
     "cpu_legacy": {"dim_model": 256, "n_layers": 4, "n_heads": 8},  # the CPU config before the CPU tier
 }
 
@@ -68,7 +80,8 @@ RND_CONFIGS = {
 def describe_rnd(name: str, cfg) -> str:
     return (
         f"{name}: {cfg.variant}, {cfg.n_layers}L x {cfg.dim_model}, {cfg.n_heads} heads, "
-        f"patch {cfg.patch_size}{f', {cfg.gripper_patches} gripper patches' if cfg.gripper_patches else ''}"
+        f"patch {cfg.patch_size} ({cfg.patch_embed})"
+        f"{f', {cfg.gripper_patches} gripper patches' if cfg.gripper_patches else ''}"
         f"{', bf16' if cfg.autocast_bf16 else ''}, "
         f"{cfg.num_inference_steps} DDIM + {int(cfg.final_action_step)} final"
     )

@@ -257,7 +257,7 @@ def quickstart_section(results: list[tuple[str, dict]]) -> list[str]:
 
 
 def inference_section(res: dict) -> list[str]:
-    rows = {f"{r['method']} ({r['config']})": r for r in res["results"]}
+    rows = {f"{r['method']} ({r['config']}; {r['params'] / 1e6:.1f}M parameters)": r for r in res["results"]}
     act = next((r for r in res["results"] if r["method"] == "ACT"), None)
     lines = [
         "### One action chunk at inference (CPU)",

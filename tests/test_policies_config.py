@@ -24,3 +24,34 @@ def test_config_parses_as_a_train_config(path):
         assert cfg.policy.n_obs_steps == 2 and cfg.policy.chunk_size == 8
     if cfg.policy.type == "act":
         assert cfg.policy.pretrained_backbone_weights is None  # no downloads offline
+
+
+def test_inference_benchmark_times_the_cpu_tier_that_training_builds():
+    """bench_inference's "cpu" R&D is the model that `lerobot-train --config_path=rnd_ai_cpu.json` builds (it once
+    kept a hand copy that missed patch_embed=conv and timed the old model)."""
+    import sys
+
+    import lerobot.policies  # noqa: F401
+    from lerobot.configs.train import TrainPipelineConfig
+
+    import lerobot_rnd  # noqa: F401
+    import lerobot_rnd.sim  # noqa: F401
+    from lerobot_rnd.configuration_rnd import RnDConfig
+
+    repo = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(repo / "benchmarks"))
+    try:
+        import bench_inference
+    finally:
+        sys.path.remove(str(repo / "benchmarks"))
+    trained = draccus.parse(TrainPipelineConfig, str(repo / "policies_config/metaworld/rnd_ai_cpu.json"), args=[]).policy
+    timed = RnDConfig(**bench_inference.RND_CONFIGS["cpu"])
+    skip = {"device", "push_to_hub", "input_features", "output_features", "normalization_mapping"}
+    fields = [f for f in RnDConfig.__dataclass_fields__ if f not in skip]
+    def norm(v):
+        return tuple(norm(x) for x in v) if isinstance(v, (list, tuple)) else v
+
+    differ = {f: (getattr(timed, f), getattr(trained, f)) for f in fields
+              if norm(getattr(timed, f)) != norm(getattr(trained, f))}  # fmt: skip
+    assert not differ
+    assert trained.patch_embed == "conv" and trained.dim_model != RnDConfig().dim_model  # not the paper defaults
