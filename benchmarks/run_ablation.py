@@ -35,6 +35,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from benchmarks.harness.reports import wilson_interval  # noqa: E402
+from lerobot_rnd.precision import cpu_bf16_is_fast  # noqa: E402
 from lerobot_rnd.sim.record import recorded_setting  # noqa: E402
 
 OUT_JSON = REPO / "benchmarks" / "results" / "ablation_cpu.json"
@@ -56,6 +57,7 @@ ROWS = {
     "shift_conv": (["--policy.image_shift_augment=6", "--policy.patch_embed=conv"], None, []),
     # the regularisers the Diffusion Policy / research code train with, on top of the shift
     "regularised": (["--policy.image_shift_augment=6", "--policy.use_ema=true", "--policy.dropout=0.1"], None, []),
+    "ema": (["--policy.use_ema=true"], None, []),  # evaluate an EMA of the weights (decay 0.999), as DP does
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
@@ -92,6 +94,21 @@ def check_reused_checkpoint(ckpt: Path, train_args: list[str], steps: int, data:
             problems.append(f"policy.{key} is {have}, the row wants {val}")
     if problems:
         raise SystemExit(f"--checkpoint {ckpt} does not match its row: " + "; ".join(problems))
+
+
+# The training switches a row's checkpoint was trained with, read back from its train_config.json: the config's
+# defaults change between rows' runs (patch_embed became "conv"), so a row's overrides alone don't say what ran.
+RECORDED_SWITCHES = ("patch_embed", "embedding_init_std", "history_rgb_overlay", "image_shift_augment", "use_ema",
+                     "dropout", "point_update", "denoise_step")  # fmt: skip
+
+
+def trained_switches(ckpt: Path) -> dict:
+    """{switch: value} of RECORDED_SWITCHES from a pretrained_model folder's train_config.json ({} if missing)."""
+    cfg_path = ckpt / "train_config.json"
+    if not cfg_path.exists():
+        return {}
+    policy = json.loads(cfg_path.read_text()).get("policy", {})
+    return {k: policy[k] for k in RECORDED_SWITCHES if k in policy}
 
 
 def reused_train_command(ckpt: Path) -> list[str] | None:
@@ -184,6 +201,7 @@ def main(argv=None) -> int:
             "checkpoint": str(ckpt.relative_to(REPO)) if ckpt.is_relative_to(REPO) else str(ckpt), "successes": sum(succ), "episodes": len(succ),
             "success_rate": sum(succ) / len(succ), "ci95": [lo, hi], "val_seeds": [a.val_seed, a.val_seed + len(succ) - 1],
             "per_episode_success": succ, "commands": {"train": train_cmd, "eval": eval_cmd},
+            "trained_switches": trained_switches(ckpt), "bf16_autocast_on_this_cpu": cpu_bf16_is_fast(),
             "demos_expert_reach_target": expert,
             "ablation_command": shlex.join(["python", "benchmarks/run_ablation.py", *(sys.argv[1:] if argv is None else argv)]),
             "seconds": round(time.time() - t0, 1),

@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from benchmarks.run_ablation import ROWS, check_reused_checkpoint, main
+from benchmarks.run_ablation import ROWS, check_reused_checkpoint, main, trained_switches
 
 
 def _checkpoint(tmp_path, steps=3000, root="demos", **policy):
@@ -53,3 +53,11 @@ def test_a_reused_checkpoint_reports_the_command_that_trained_it(tmp_path):
     cmd = ["lerobot-train", "--policy.image_shift_augment=6"]
     (tmp_path / "run" / "run.json").write_text(json.dumps({"commands": {"train": cmd}}))
     assert reused_train_command(ckpt) == cmd
+
+
+def test_a_row_records_what_its_checkpoint_was_trained_with(tmp_path):
+    """The config's defaults change between runs (patch_embed became "conv"), so a row stores the switches read
+    back from its checkpoint, not only its overrides."""
+    ckpt = _checkpoint(tmp_path, patch_embed="conv", use_ema=True, dim_model=256)
+    assert trained_switches(ckpt) == {"patch_embed": "conv", "image_shift_augment": 0, "use_ema": True, "dropout": 0.0}
+    assert trained_switches(tmp_path / "missing") == {}
