@@ -4,6 +4,10 @@
 frames of a sample, as DrQ's and Diffusion Policy's random crops do) and moves that camera's principal point by
 the same offset. A 3-D point that projected to pixel (u, v) now projects to (u + dx, v + dy), where its image
 content went, so the gripper R&D renders with the shifted intrinsics still lands on the real gripper.
+
+`camera_dropout_keep` / `drop_cameras` blank one whole camera of a random share of the training samples (its
+RGB and point maps, observed and rendered, and its image-space loss), as the authors' research code does, so
+the network cannot lean on one view.
 """
 
 from __future__ import annotations
@@ -41,3 +45,32 @@ def shift_images_and_intrinsics(
     K_shifted[..., 0, 2] += offsets[..., 0].to(K.dtype)
     K_shifted[..., 1, 2] += offsets[..., 1].to(K.dtype)
     return shifted, K_shifted
+
+
+# Keys of `RnDModel._network_inputs` that carry per-camera pixels, camera on dim 2: (B, H or T, C, ...).
+CAMERA_INPUT_KEYS = ("obs_rgb", "obs_points", "future_rgb", "future_points")
+
+
+def camera_dropout_keep(
+    b: int, c: int, p: float, generator: torch.Generator | None = None, device: torch.device | str = "cpu"
+) -> Tensor:
+    """(B, C) bool: which cameras each sample keeps. With probability `p` a sample loses one camera, chosen
+    uniformly; a sample never loses all its cameras (one camera: always kept)."""
+    if p <= 0 or c < 2:
+        return torch.ones(b, c, dtype=torch.bool, device=device)
+    drop = torch.rand(b, generator=generator, device="cpu") < p
+    which = torch.randint(0, c, (b,), generator=generator, device="cpu")
+    keep = ~(drop[:, None] & (torch.arange(c)[None, :] == which[:, None]))
+    return keep.to(device)
+
+
+def drop_cameras(inputs: dict, keep: Tensor) -> dict:
+    """Blank the dropped cameras of `_network_inputs`-style `inputs`: CAMERA_INPUT_KEYS become 0 and
+    `target_mask` (B, T, C, N) False there, so the dropped view neither informs the network nor is scored.
+    keep: (B, C) bool from `camera_dropout_keep`. Returns a new dict; the other entries are shared."""
+    out = dict(inputs)
+    for key in CAMERA_INPUT_KEYS:
+        x = inputs[key]
+        out[key] = x * keep.view(keep.shape[0], 1, keep.shape[1], *([1] * (x.dim() - 3))).to(x.dtype)
+    out["target_mask"] = inputs["target_mask"] & keep[:, None, :, None]
+    return out

@@ -116,6 +116,9 @@ class RnDConfig(PreTrainedConfig):
         image_shift_augment: Training only: shift each camera's images by a random offset of up to this many
             pixels (at `image_size`; border replicated) and its principal point with them, so the renders stay on
             the real gripper (`lerobot_rnd.augmentation`). 0 = off.
+        camera_dropout: Training only: the probability that a sample loses one of its cameras (chosen uniformly;
+            never the last one): that view's RGB and point maps become 0 and its image-space loss is dropped, so
+            the network does not rely on one view (the authors' research code trains so). 0 = off.
         num_train_timesteps: Diffusion steps K used in training.
         beta_schedule: Noise schedule of the DDIM scheduler (diffusers names).
         num_inference_steps: DDIM steps at inference (the paper: 4).
@@ -199,6 +202,7 @@ class RnDConfig(PreTrainedConfig):
     embedding_init_std: float = 1.0
     dropout: float = 0.0
     image_shift_augment: int = 0
+    camera_dropout: float = 0.0
 
     # Diffusion.
     num_train_timesteps: int = 50
@@ -263,6 +267,10 @@ class RnDConfig(PreTrainedConfig):
             raise ValueError(
                 f"`image_shift_augment` must be in [0, {min(self.image_size) // 2}) pixels (image_size "
                 f"{self.image_size}). Got {self.image_shift_augment}."
+            )
+        if not 0.0 <= self.camera_dropout <= 1.0:
+            raise ValueError(
+                f"`camera_dropout` is a probability, in [0, 1] (0 = off). Got {self.camera_dropout}."
             )
         if self.point_map_scale <= 0:
             raise ValueError(f"`point_map_scale` must be > 0. Got {self.point_map_scale}.")

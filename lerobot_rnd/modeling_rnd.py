@@ -21,7 +21,7 @@ from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 from torch import Tensor, nn
 
 from lerobot_rnd.action_adapters import ActionAdapter
-from lerobot_rnd.augmentation import shift_images_and_intrinsics
+from lerobot_rnd.augmentation import camera_dropout_keep, drop_cameras, shift_images_and_intrinsics
 from lerobot_rnd.configuration_rnd import RnDConfig, migrate_saved_config
 from lerobot_rnd.embodiment_binding import (
     CameraRig,
@@ -608,6 +608,9 @@ class RnDModel(nn.Module):
         if self.training and cfg.image_shift_augment > 0:
             images, K = shift_images_and_intrinsics(images, self.rig.K, cfg.image_shift_augment)
         sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target, K=K)
+        if self.training and cfg.camera_dropout > 0:
+            keep = camera_dropout_keep(b, images.shape[2], cfg.camera_dropout, device=images.device)
+            sample = drop_cameras(sample, keep)
         a_gt, a_noisy = sample["a_gt"], sample["a_noisy"]
         displacement, update, logits = self._run_network(self.network, sample, gripper, sample["k"], a_noisy)
 

@@ -1,4 +1,5 @@
-"""`image_shift_augment`: images and principal points move together, so renders stay on the real gripper."""
+"""`image_shift_augment`: images and principal points move together, so renders stay on the real gripper.
+`camera_dropout`: one whole camera of a share of the training samples is blanked and unscored."""
 
 import pytest
 import torch
@@ -75,3 +76,59 @@ def test_training_only_and_validated(toy_dataset_root):
     assert calls and all(k is None for k in calls)
     with pytest.raises(ValueError, match="image_shift_augment"):
         make_policy(toy_dataset_root, image_shift_augment=-1)
+
+
+def test_camera_dropout_drops_one_camera_of_the_chosen_share_never_all():
+    from lerobot_rnd.augmentation import camera_dropout_keep
+
+    g = torch.Generator().manual_seed(0)
+    keep = camera_dropout_keep(4000, 2, 0.3, generator=g)
+    dropped = (~keep).sum(1)
+    assert set(dropped.tolist()) <= {0, 1}  # never both cameras
+    assert abs(dropped.float().mean().item() - 0.3) < 0.03  # 3 sigma is 0.022
+    assert abs((~keep[:, 0]).float().mean().item() - 0.15) < 0.025  # each camera alike
+    assert camera_dropout_keep(50, 1, 1.0, generator=g).all()  # a single camera is never dropped
+    assert camera_dropout_keep(50, 3, 0.0, generator=g).all()
+    assert ((~camera_dropout_keep(500, 3, 1.0, generator=g)).sum(1) == 1).all()
+
+
+def test_dropped_cameras_are_blank_and_unscored_the_others_untouched():
+    from lerobot_rnd.augmentation import CAMERA_INPUT_KEYS, drop_cameras
+
+    g = torch.Generator().manual_seed(1)
+    b, h, t, c = 3, 2, 4, 2
+    inputs = {"obs_rgb": torch.rand(b, h, c, 3, 8, 8, generator=g), "obs_points": torch.rand(b, h, c, 3, 8, 8, generator=g),
+              "future_rgb": torch.rand(b, t, c, 3, 16, generator=g), "future_points": torch.rand(b, t, c, 3, 16, generator=g),
+              "target_mask": torch.ones(b, t, c, 16, dtype=torch.bool), "k": torch.arange(b)}  # fmt: skip
+    keep = torch.tensor([[True, True], [False, True], [True, False]])
+    out = drop_cameras(inputs, keep)
+    for key in CAMERA_INPUT_KEYS:
+        for i in range(b):
+            for cam in range(c):
+                got, orig = out[key][i, :, cam], inputs[key][i, :, cam]
+                assert torch.equal(got, orig) if keep[i, cam] else (got == 0).all(), (key, i, cam)
+    assert out["target_mask"][1, :, 0].sum() == 0 and out["target_mask"][2, :, 1].sum() == 0
+    assert out["target_mask"].sum() == (b * c - 2) * t * 16
+    assert out["k"] is inputs["k"]
+
+
+def test_camera_dropout_is_training_only_and_validated(toy_dataset_root):
+    policy, _ = make_policy(toy_dataset_root, camera_dropout=1.0)
+    batch = training_batch(toy_dataset_root, policy.config, n=4)
+    seen = []
+    original = policy.model._run_network
+
+    def spy(network, inputs, *args):
+        seen.append(inputs["obs_rgb"].flatten(3).abs().amax(-1).amax(1))  # (B, C): 0 where blanked
+        return original(network, inputs, *args)
+
+    policy.model._run_network = spy
+    policy.train()
+    loss, _ = policy.forward(batch)
+    assert torch.isfinite(loss) and ((seen[-1] == 0).sum(1) == 1).all()  # p = 1: every sample lost one camera
+    policy.eval()
+    with torch.no_grad():
+        policy.predict_action_chunk({k: v for k, v in batch.items() if not k.startswith("action")})
+    assert all((s > 0).all() for s in seen[1:])
+    with pytest.raises(ValueError, match="camera_dropout"):
+        make_policy(toy_dataset_root, camera_dropout=1.5)
