@@ -78,11 +78,13 @@ RND_CONFIGS = {
 
 
 def describe_rnd(name: str, cfg) -> str:
+    from lerobot_rnd.precision import bf16_autocast_applies
+
     return (
         f"{name}: {cfg.variant}, {cfg.n_layers}L x {cfg.dim_model}, {cfg.n_heads} heads, "
         f"patch {cfg.patch_size} ({cfg.patch_embed})"
         f"{f', {cfg.gripper_patches} gripper patches' if cfg.gripper_patches else ''}"
-        f"{', bf16' if cfg.autocast_bf16 else ''}, "
+        f"{', bf16' if cfg.autocast_bf16 and bf16_autocast_applies(torch.device(cfg.device or 'cpu').type) else ''}, "
         f"{cfg.num_inference_steps} DDIM + {int(cfg.final_action_step)} final"
     )
 
@@ -229,6 +231,8 @@ def rnd_breakdown(policy, call, device: str, runs: int) -> dict:
 def machine_info(devices: list[str]) -> dict:
     import lerobot
 
+    from lerobot_rnd.precision import cpu_bf16_is_fast
+
     cpu = platform.processor()
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
@@ -246,6 +250,8 @@ def machine_info(devices: list[str]) -> dict:
         "os_cpu_count": os.cpu_count(),
         "sched_affinity": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
         "torch_threads": torch.get_num_threads(),
+        "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+        "bf16_autocast_applies_on_cpu": cpu_bf16_is_fast(),  # else autocast_bf16 configs ran float32 (precision.py)
         "load_average_at_start": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         "devices": {},
     }

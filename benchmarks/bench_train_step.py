@@ -43,6 +43,8 @@ import torch
 REPO_ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO_ROOT))
 
+from lerobot_rnd.precision import cpu_bf16_is_fast  # noqa: E402
+
 PHASES = ("data", "pre", "render", "forward", "backward", "optim")
 DEFAULT_METHODS = "rnd_ai_cpu_legacy,rnd_ai_cpu,act_cpu,diffusion_cpu"
 
@@ -207,7 +209,7 @@ class Method:
             "settings": {
                 k: getattr(pol, k)
                 for k in ("dim_model", "n_layers", "patch_size", "image_size", "n_obs_steps", "chunk_size",
-                          "horizon", "down_dims", "gripper_patches", "cpu_bf16", "variant")
+                          "horizon", "down_dims", "gripper_patches", "patch_embed", "autocast_bf16", "variant")
                 if hasattr(pol, k)
             },
         }
@@ -263,7 +265,9 @@ def main(argv: list[str] | None = None) -> int:
             "dataset_root": a.dataset_root,
             "reference": ref_name,
             "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
-                        "torch": torch.__version__, "cpu_capability": torch.backends.cpu.get_cpu_capability()},
+                        "torch": torch.__version__, "cpu_capability": torch.backends.cpu.get_cpu_capability(),
+                        # whether autocast_bf16=True configs really ran in bf16 here (lerobot_rnd/precision.py)
+                        "bf16_autocast_applies": cpu_bf16_is_fast()},
             "results": rows,
         }
         Path(a.out).parent.mkdir(parents=True, exist_ok=True)

@@ -22,3 +22,21 @@ def test_success_by_distance_to_the_nearest_demo_goal():
     lines = generalisation_section(res, "cpu")
     assert "| R&D-AI | 10 | 1/1 | 1/1 | 0/1 | 1/1 |" in lines
     assert sum(line.startswith("| R&D-AI") for line in lines) == 1  # drawer-close has no goal to measure
+
+
+def test_each_train_step_json_gets_its_own_section_naming_its_file_and_cpu():
+    from benchmarks.write_benchmarks_md import train_step_section
+
+    def result(method, total, data=0.05):
+        phases = {"data": data, "pre": 0.0, "render": 0.1, "forward": 0.2, "backward": total - 0.35 - data, "optim": 0.0}
+        return {"method": method, "parameters": 6e6, "median_s": phases, "median_total_s": total,
+                "speedup_vs_reference": 0.0}  # fmt: skip
+
+    res = {"command": "python benchmarks/bench_train_step.py", "steps": 5, "warmup": 2, "batch_size": 8,
+           "threads": 2, "reference": "old", "results": [result("old", 4.05), result("new", 0.45)],
+           "machine": {"cores": 2, "torch": "2.10", "cpu_capability": "AVX2"}}  # fmt: skip
+    lines = train_step_section(res, "train_step_cpu_avx2.json")
+    text = "\n".join(lines)
+    assert "train_step_cpu_avx2.json" in text and "AVX2" in lines[0]
+    new_row = next(line for line in lines if line.startswith("| `new`"))
+    assert "0.400 (10.0x)" in new_row  # model step without data: (4.05 - 0.05) / (0.45 - 0.05)
