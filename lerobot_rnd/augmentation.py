@@ -6,8 +6,8 @@ the same offset. A 3-D point that projected to pixel (u, v) now projects to (u +
 content went, so the gripper R&D renders with the shifted intrinsics still lands on the real gripper.
 
 `camera_dropout_keep` / `drop_cameras` blank one whole camera of a random share of the training samples (its
-RGB and point maps, observed and rendered, and its image-space loss), as the authors' research code does, so
-the network cannot lean on one view.
+RGB and point maps, observed and rendered, and its image-space loss), so the network cannot lean on one view
+(the authors' research code can drop a view's tokens for a whole batch, off by default).
 """
 
 from __future__ import annotations

@@ -118,7 +118,9 @@ class RnDConfig(PreTrainedConfig):
             the real gripper (`lerobot_rnd.augmentation`). 0 = off.
         camera_dropout: Training only: the probability that a sample loses one of its cameras (chosen uniformly;
             never the last one): that view's RGB and point maps become 0 and its image-space loss is dropped, so
-            the network does not rely on one view (the authors' research code trains so). 0 = off.
+            the network does not rely on one view. The authors' research code offers this off by default
+            (`camera_masking_ratio`: it removes one view's tokens for a whole batch; a per-sample blank view
+            keeps shapes static). 0 = off.
         num_train_timesteps: Diffusion steps K used in training.
         beta_schedule: Noise schedule of the DDIM scheduler (diffusers names).
         num_inference_steps: DDIM steps at inference (the paper: 4).
