@@ -13,7 +13,7 @@ from lerobot.optim.schedulers import DiffuserSchedulerConfig
 RND_VARIANTS = ("A", "I", "AI")
 POINT_UPDATES = ("x0", "interpolate", "ddim")
 PATCH_EMBEDS = ("linear", "conv")  # lerobot_rnd.network.patch_embedding
-DENOISE_STEPS = ("ddim", "clean")
+DENOISE_STEPS = ("ddim", "clean", "refine")
 
 #: Fields added after checkpoints were already saved, whose default is not what those checkpoints did, with
 #: the value that reproduces them. A saved config.json without the key gets this value on load
@@ -141,7 +141,9 @@ class RnDConfig(PreTrainedConfig):
             SVD. "ddim": the paper's equation applied literally to camera-frame points (it rescales the cloud
             about each camera centre; kept for ablation).
         denoise_step: "ddim" takes deterministic DDIM steps from the clean estimate; "clean" jumps to the clean
-            estimate at every step (what the research code effectively does), re-rendering it for the next one.
+            estimate at every step, re-rendering it for the next one; "refine" jumps to the clean estimate too but
+            tells the network the noise level of what it now sees: the first step at the schedule's first
+            timestep, then timesteps num_inference_steps - 2, ..., 0 (nearly clean), as the research code does.
         image_loss_weight, action_loss_weight, gripper_loss_weight: Weights of the three loss terms
             (L1 image-space displacement, averaged per camera then summed over cameras; L1 action-space update;
             BCE gripper, with the positive class weighted by the dataset's open/closed ratio).

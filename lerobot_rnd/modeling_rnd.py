@@ -37,6 +37,7 @@ from lerobot_rnd.sampler import (
     ddim_step,
     displacement_target,
     inference_schedule,
+    network_timesteps,
     interpolation_step,
     make_noise_scheduler,
     register_point_update,
@@ -351,6 +352,7 @@ class RnDModel(nn.Module):
             self.noise_scheduler, config.num_inference_steps
         )
         self.inference_timesteps = timesteps
+        self.network_timesteps = network_timesteps(timesteps, config.denoise_step)  # told to the network
         self.register_buffer("inference_alpha_bar", alpha_bar, persistent=False)
         self.register_buffer("inference_alpha_bar_prev", alpha_bar_prev, persistent=False)
         self._compiled_sampler = None
@@ -688,7 +690,7 @@ class RnDModel(nn.Module):
         a = a.clamp(-1, 1)
         T_ee = pose_from_action(self.action_stats.unnormalize(a))
         inputs = self._network_inputs(images, T_world_ee, gripper, T_ee, full_composite=full_composite, history=history)
-        timestep = torch.full((b,), self.inference_timesteps[i], device=a.device, dtype=torch.long)
+        timestep = torch.full((b,), self.network_timesteps[i], device=a.device, dtype=torch.long)
         displacement, update, logits = self._run_network(self.sampling_network, inputs, gripper, timestep, a)
         alpha = self.inference_alpha_bar[i]
         alpha_prev = self.inference_alpha_bar_prev[i] if cfg.denoise_step == "ddim" else torch.ones_like(alpha)

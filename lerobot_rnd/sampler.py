@@ -41,6 +41,14 @@ def inference_schedule(scheduler: DDIMScheduler, num_inference_steps: int) -> tu
     return timesteps, alpha_bar.float(), torch.stack(prev).float()
 
 
+def network_timesteps(timesteps: list[int], denoise_step: str) -> list[int]:
+    """The timestep the network is told at each sampler step: the schedule's own, or for "refine" (clean jumps
+    after a first step from pure noise) the first one, then len - 2, ..., 0: the input is nearly clean by then."""
+    if denoise_step != "refine":
+        return list(timesteps)
+    return [timesteps[0]] + list(range(len(timesteps) - 2, -1, -1))
+
+
 def ddim_step(x_k: Tensor, x0_hat: Tensor, alpha_bar: Tensor, alpha_bar_prev: Tensor) -> Tensor:
     """Deterministic DDIM update x_k -> x_{k-1} from the predicted clean sample (eta = 0).
 

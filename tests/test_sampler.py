@@ -151,7 +151,7 @@ POINT_UPDATE_MODES = ("x0", "interpolate", "ddim")
 
 @pytest.mark.parametrize("point_update", POINT_UPDATE_MODES)
 @pytest.mark.parametrize("variant", ["I", "AI"])
-@pytest.mark.parametrize("denoise_step", ["ddim", "clean"])
+@pytest.mark.parametrize("denoise_step", ["ddim", "clean", "refine"])
 def test_sampler_with_an_oracle_denoiser_reaches_the_target_from_any_noise_level(
     toy_dataset_root, point_update, variant, denoise_step
 ):
@@ -288,3 +288,36 @@ def test_batched_and_per_sample_inference_agree(toy_dataset_root):
     single = torch.cat([policy.model.generate_actions(images[i : i + 1], state[i : i + 1], noise=noise[i : i + 1])
                         for i in range(b)])
     torch.testing.assert_close(batched, single, atol=1e-4, rtol=1e-4)
+
+
+def test_refine_tells_the_network_low_noise_after_the_first_step_and_jumps_to_the_estimate(toy_dataset_root):
+    """denoise_step="refine" (the research code's inference): the network hears the schedule's first timestep,
+    then 2, 1, 0 (4 steps), and every step moves the actions to the clean estimate (alpha_prev = 1)."""
+    seen = []
+    for mode in ("ddim", "refine"):
+        policy, _ = _make_policy(toy_dataset_root, variant="A", num_inference_steps=4, final_action_step=False,
+                                 denoise_step=mode)  # fmt: skip
+        model = policy.model
+        images, T_world_ee, gripper = _observation(model)
+        target = torch.full((3, 4, 6), 0.25)
+        steps, states = [], []
+
+        class Constant(torch.nn.Module):  # predicts the constant target's action update; records the timesteps
+            def forward(self, *args, **kwargs):
+                timestep, noisy = args[5], args[6]
+                steps.append(timestep.tolist())
+                states.append(noisy.clone())
+                return None, target - noisy, torch.zeros(noisy.shape[:2])
+
+        model.network = Constant()
+        noise = torch.randn(3, 4, 6, generator=torch.Generator().manual_seed(0)).clamp(-1, 1)
+        with torch.no_grad():
+            model.denoise(images, T_world_ee, gripper, noise)
+        seen.append((steps, states))
+    (ddim_steps, ddim_states), (refine_steps, refine_states) = seen
+    first = model.inference_timesteps[0]
+    assert [s[0] for s in refine_steps] == [first, 2, 1, 0] and all(len(set(s)) == 1 for s in refine_steps)
+    assert [s[0] for s in ddim_steps] == list(model.inference_timesteps) and ddim_steps[1][0] > 2
+    for x in refine_states[1:]:  # after the first jump, every input is the clean estimate
+        torch.testing.assert_close(x, target)
+    assert not torch.allclose(ddim_states[1], target, atol=1e-3)  # DDIM keeps noise in the intermediate steps
