@@ -180,13 +180,18 @@ def ablation_section(res: dict, name: str) -> list[str]:
         "",
         res.get("description", "") + f" JSON: [`{name}`](../benchmarks/results/{name}).",
         "",
-        "| row | demos' expert | training switches | sampler switches | steps | final loss | success | 95% interval | episodes |",
-        "| --- | --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
+        "| row | demos' expert | patch embedding | network precision | training switches | sampler switches | steps | "
+        "final loss | success | 95% interval | episodes |",
+        "| --- | --- | --- | --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
     ]
     for row in res["rows"]:
         lo, hi = row["ci95"]
+        embed = row.get("trained_switches", {}).get("patch_embed", "–")
+        bf16 = row.get("bf16_autocast_on_this_cpu")
+        precision = "–" if bf16 is None else ("bf16 autocast" if bf16 else "float32")
         lines.append(
-            f"| {row['name']} | {row.get('demos_expert_reach_target', '–')} | `{row['train']}` | `{row['sampler']}` | {row['steps']} | "
+            f"| {row['name']} | {row.get('demos_expert_reach_target', '–')} | {embed} | {precision} | `{row['train']}` | "
+            f"`{row['sampler']}` | {row['steps']} | "
             f"{row['final_loss'] if row.get('final_loss') is not None else '–'} | {100 * row['success_rate']:.0f}% | "
             f"{100 * lo:.0f}–{100 * hi:.0f}% | {row['episodes']} |"
         )

@@ -40,3 +40,15 @@ def test_each_train_step_json_gets_its_own_section_naming_its_file_and_cpu():
     assert "train_step_cpu_avx2.json" in text and "AVX2" in lines[0]
     new_row = next(line for line in lines if line.startswith("| `new`"))
     assert "0.400 (10.0x)" in new_row  # model step without data: (4.05 - 0.05) / (0.45 - 0.05)
+
+
+def test_ablation_rows_show_the_patch_embedding_and_precision_they_ran_with():
+    from benchmarks.write_benchmarks_md import ablation_section
+
+    row = {"name": "ema", "train": "--policy.use_ema=true", "sampler": "(config defaults)", "steps": 3000,
+           "final_loss": 0.03, "success_rate": 0.5, "ci95": [0.3, 0.7], "episodes": 20,
+           "trained_switches": {"patch_embed": "conv"}, "bf16_autocast_on_this_cpu": False}  # fmt: skip
+    old = {k: v for k, v in row.items() if k not in ("trained_switches", "bf16_autocast_on_this_cpu")}
+    lines = ablation_section({"rows": [row, {**old, "name": "old"}]}, "x.json")
+    assert any(line.startswith("| ema |") and "| conv | float32 |" in line for line in lines)
+    assert any(line.startswith("| old |") and "| – | – |" in line for line in lines)
