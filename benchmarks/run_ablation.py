@@ -57,9 +57,9 @@ ROWS = {
     "shift_conv": (["--policy.image_shift_augment=6", "--policy.patch_embed=conv"], None, []),
     # the regularisers the Diffusion Policy / research code train with, on top of the shift
     "regularised": (["--policy.image_shift_augment=6", "--policy.use_ema=true", "--policy.dropout=0.1"], None, []),
-    "ema": (["--policy.use_ema=true"], None, []),
+    "ema": (["--policy.use_ema=true"], None, []),  # evaluate an EMA of the weights (decay 0.999), as DP does
     "ema_refine": ([], "ema", ["--policy.denoise_step=refine"]),  # the research code's inference schedule
-    "camera_dropout": (["--policy.camera_dropout=0.3"], None, []),  # a sample loses one of its 2 views w.p. 0.3  # evaluate an EMA of the weights (decay 0.999), as DP does
+    "camera_dropout": (["--policy.camera_dropout=0.3"], None, []),  # a sample loses one of its 2 views w.p. 0.3
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }

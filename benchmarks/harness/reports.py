@@ -4,6 +4,7 @@ and the plots (success vs demos, success per task, loss curves, spatial heat map
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 from .scales import METHODS, RND_METHODS
@@ -18,6 +19,30 @@ def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tup
     centre = (p + z * z / (2 * n)) / denom
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
     return (max(0.0, centre - half), min(1.0, centre + half))
+
+
+_LOG_LINE = re.compile(r"^\$ |step:([0-9.]+)([KMBT]?) .*?loss:([0-9.]+)", re.MULTILINE)
+_SUFFIX = {"": 1, "K": 10**3, "M": 10**6, "B": 10**9, "T": 10**12}
+
+
+def loss_curve_from_log(text: str, log_freq: int) -> list[tuple[int, float]]:
+    """[(step, loss)] from a lerobot-train log (the harness's train.log may hold several invocations).
+
+    LeRobot prints the step rounded to thousands ('step:2K' for 1,500-2,499), so each logged line's step is the
+    previous line's plus `log_freq`; the printed value anchors the count only at the first line of each
+    invocation (a line starting with '$ ', as the harness writes before every command), where it is exact below
+    1,000 and within 500 above (a resumed run). A step logged twice keeps its last loss.
+    """
+    curve: dict[int, float] = {}
+    step = None
+    for m in _LOG_LINE.finditer(text):
+        if m.group(0).startswith("$"):
+            step = None
+            continue
+        shown = round(float(m.group(1)) * _SUFFIX[m.group(2)])
+        step = shown if step is None else step + log_freq
+        curve[step] = float(m.group(3))
+    return sorted(curve.items())
 
 
 def _pool(runs: list[dict]) -> tuple[int, int]:

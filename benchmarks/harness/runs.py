@@ -18,7 +18,7 @@ from pathlib import Path
 from . import REPO_ROOT, grid_eval
 from .files import _read_json, _rel, _write_json
 from .processes import OutOfTime, git_commit, run_logged, tool_argv
-from .reports import rnd_losses, wilson_interval, write_report_files
+from .reports import loss_curve_from_log, rnd_losses, wilson_interval, write_report_files
 from .scales import COMMON_METHOD_ARGS, CONFIG_DIR, METHODS, SCALES, method_family
 
 HARNESS_VERSION = 1
@@ -240,7 +240,7 @@ class Benchmark:
                 "start_step": step, "end_step": end_step, "wall_s": round(r.wall_s, 2),
                 "loop_s": None if loop_s is None else round(loop_s, 2), "rc": r.rc, "stopped": r.stopped,
             })  # fmt: skip
-            self._parse_train_log(log, st)
+            self._parse_train_log(log, st, self.a.log_freq)
             _write_json(rdir / "run.json", st)
             if r.stopped:
                 hint = ("" if end_step > step else
@@ -296,7 +296,7 @@ class Benchmark:
                 shutil.rmtree(d, ignore_errors=True)
 
     @staticmethod
-    def _parse_train_log(log: Path, st: dict) -> None:
+    def _parse_train_log(log: Path, st: dict, log_freq: int) -> None:
         try:
             text = log.read_text(errors="replace")
         except FileNotFoundError:
@@ -314,12 +314,9 @@ class Benchmark:
         m = re.findall(r"data_s:([0-9.]+)", text)
         if m:
             st["data_s_median_logged"] = sorted(float(x) for x in m)[len(m) // 2]
-        curve = {}
-        for step, loss in re.findall(r"step:([0-9.]+K?) .*?loss:([0-9.]+)", text):
-            k = int(float(step[:-1]) * 1000) if step.endswith("K") else int(step)
-            curve[k] = float(loss)  # a resumed run logs its steps again: the last value wins
+        curve = loss_curve_from_log(text, log_freq)
         if curve:
-            st["loss_curve"] = sorted(curve.items())
+            st["loss_curve"] = curve
 
     # ------------------------------------------------------------------ evaluation
     def evaluate(self, method: str, task: str, n: int, seed: int, st: dict) -> None:
@@ -437,7 +434,7 @@ class Benchmark:
             if not a.dry_run:
                 st["status"] = "done"
                 st.pop("error", None)
-                self._parse_train_log(rdir / "train.log", st)
+                self._parse_train_log(rdir / "train.log", st, self.a.log_freq)
                 _write_json(self.result_path(method, task, n, seed), st)
                 print(f"wrote {self.result_path(method, task, n, seed)}", flush=True)
                 if a.prune_optimizer:

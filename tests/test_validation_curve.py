@@ -1,0 +1,110 @@
+"""benchmarks/validation_curve.py and the training-log parser it shares with the harness."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pytest
+
+import benchmarks.validation_curve as vc
+from benchmarks.harness.reports import loss_curve_from_log
+
+
+def _log_line(step: int, loss: float) -> str:
+    # LeRobot's format: the step rounded to thousands above 999 (format_big_number, precision 0)
+    shown = f"{step}" if step < 1000 else f"{step / 1000:.0f}K"
+    return f"Training: 10%|# | {step}/9000 [00:10<01:00]INFO 2026 ot_train.py:435 step:{shown} smpl:1K ep:1 loss:{loss} grdn:1.0\n"
+
+
+def test_loss_curve_counts_steps_that_lerobot_prints_rounded_to_thousands():
+    text = "# 2026\n$ lerobot-train --steps=3000\n" + "".join(
+        _log_line(s, s / 1e4) for s in range(50, 3001, 50)
+    )
+    curve = loss_curve_from_log(text, log_freq=50)
+    assert [s for s, _ in curve] == list(range(50, 3001, 50))  # not 1000, 2000, 3000 only
+    assert dict(curve)[1450] == pytest.approx(0.145) and dict(curve)[2550] == pytest.approx(0.255)
+
+
+def test_loss_curve_restarts_its_count_at_each_invocation_and_keeps_the_last_loss():
+    first = "$ lerobot-train\n" + "".join(_log_line(s, 1.0) for s in range(100, 701, 100))
+    resumed = "$ lerobot-train --resume=true\n" + "".join(_log_line(s, 2.0) for s in range(600, 901, 100))
+    curve = dict(loss_curve_from_log(first + resumed, log_freq=100))
+    assert sorted(curve) == list(range(100, 901, 100))
+    assert curve[500] == 1.0 and curve[600] == 2.0 and curve[900] == 2.0
+
+
+def _train_dir(tmp_path, steps=(1500, 3000)):
+    train = tmp_path / "train"
+    for s in steps:
+        pm = train / "checkpoints" / f"{s:06d}" / "pretrained_model"
+        pm.mkdir(parents=True)
+        (pm / "train_config.json").write_text(
+            json.dumps({"steps": 3000, "log_freq": 50, "policy": {"type": "rnd"}})
+        )
+    (tmp_path / "train.log").write_text(
+        "$ lerobot-train\n" + "".join(_log_line(s, 1.0 / s) for s in range(50, 3001, 50))
+    )
+    return train
+
+
+def _fake_eval(calls, pattern):
+    def run(cmd, **kwargs):
+        calls.append(cmd)
+        out = next(a.split("=", 1)[1] for a in cmd if a.startswith("--output_dir="))
+        step = int(out.rsplit("_", 1)[1])
+        from pathlib import Path
+
+        Path(out).mkdir(parents=True)
+        info = {"per_task": [{"metrics": {"successes": pattern[step]}}]}
+        (Path(out) / "eval_info.json").write_text(json.dumps(info))
+        return subprocess.CompletedProcess(cmd, 0)
+
+    return run
+
+
+def test_curve_evaluates_each_checkpoint_on_validation_seeds_and_resumes(tmp_path, monkeypatch):
+    train = _train_dir(tmp_path)
+    calls = []
+    pattern = {1500: [True, False, False, False], 3000: [True, True, True, False]}
+    monkeypatch.setattr(vc.subprocess, "run", _fake_eval(calls, pattern))
+    out = tmp_path / "curve"
+    argv = [
+        "--train-dir",
+        str(train),
+        "--out",
+        str(out),
+        "--episodes",
+        "4",
+        "--eval-arg=--policy.denoise_step=refine",
+    ]
+    assert vc.main(argv) == 0
+    res = json.loads(out.with_suffix(".json").read_text())
+    assert [(r["step"], r["successes"], r["episodes"]) for r in res["rows"]] == [(1500, 1, 4), (3000, 3, 4)]
+    assert res["rows"][0]["training_loss_near_step"] == pytest.approx(1 / 1500)
+    assert all("--seed=100" in c and "--policy.denoise_step=refine" in c for c in calls)
+    assert out.with_suffix(".png").exists()
+    vc.main(argv)  # every checkpoint done: nothing is evaluated again
+    assert len(calls) == 2
+
+
+def test_curve_refuses_seeds_that_reach_the_evaluation_seeds(tmp_path):
+    with pytest.raises(SystemExit):
+        vc.main(["--train-dir", str(_train_dir(tmp_path)), "--out", str(tmp_path / "c"), "--val-seed", "990"])
+
+
+def test_curve_names_the_missing_checkpoint(tmp_path, capsys):
+    with pytest.raises(SystemExit):
+        vc.main(["--train-dir", str(_train_dir(tmp_path)), "--out", str(tmp_path / "c"), "--steps", "4500"])
+    assert "[4500] not saved" in capsys.readouterr().err
+
+
+def test_curve_refuses_to_mix_two_runs_in_one_file(tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(vc.subprocess, "run", _fake_eval([], {1500: [True], 3000: [False]}))
+    out = str(tmp_path / "c")
+    vc.main(["--train-dir", str(_train_dir(tmp_path)), "--out", out, "--episodes", "1"])
+    other = tmp_path / "other"
+    other.mkdir()
+    with pytest.raises(SystemExit):
+        vc.main(["--train-dir", str(_train_dir(other)), "--out", out, "--episodes", "1"])
+    assert "another run's curve" in capsys.readouterr().err
