@@ -108,3 +108,33 @@ def test_curve_refuses_to_mix_two_runs_in_one_file(tmp_path, monkeypatch, capsys
     with pytest.raises(SystemExit):
         vc.main(["--train-dir", str(_train_dir(other)), "--out", out, "--episodes", "1"])
     assert "another run's curve" in capsys.readouterr().err
+
+
+def test_benchmarks_md_section_is_written_from_the_curve_json(tmp_path, monkeypatch):
+    from benchmarks.write_benchmarks_md import validation_curve_section
+
+    pattern = {1500: [False, False, False, True], 3000: [True, True, True, False]}
+    monkeypatch.setattr(vc.subprocess, "run", _fake_eval([], pattern))
+    out = tmp_path / "validation_curve_x"
+    vc.main(
+        [
+            "--train-dir",
+            str(_train_dir(tmp_path)),
+            "--out",
+            str(out),
+            "--episodes",
+            "4",
+            "--steps",
+            "3000,1500",
+        ]
+    )
+    lines = validation_curve_section(
+        json.loads(out.with_suffix(".json").read_text()), "validation_curve_x.json"
+    )
+    rows = [line for line in lines if line.startswith("| 1500 ") or line.startswith("| 3000 ")]
+    assert [r.split(" | ")[1] for r in rows] == [
+        "1/4 (25%)",
+        "3/4 (75%)",
+    ]  # ordered by step, whatever the order run
+    assert rows[1].endswith(f"| {1 / 3000:.3f} |")
+    assert "validation seeds 100-103" in "\n".join(lines)
