@@ -9,6 +9,8 @@ script evaluates each `checkpoints/<step>/pretrained_model` of a `lerobot-train`
                  the training loss logged nearest that step, and the eval command
     <out>.png    success (with intervals) and training loss against the step
 
+and keeps each evaluation's videos and log under outputs/validation_curve/<out name>/.
+
 Finished checkpoints are skipped, so the script resumes; run it again as more checkpoints appear.
 
     python benchmarks/validation_curve.py \
@@ -31,6 +33,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from benchmarks.harness.reports import loss_curve_from_log, wilson_interval  # noqa: E402
 
+WORK = REPO / "outputs" / "validation_curve"
 FIRST_EVALUATION_SEED = 1000  # the benchmark's test seeds start here (run_benchmark.py --eval-seed)
 
 
@@ -140,7 +143,7 @@ def main(argv=None) -> int:
         if step in done:
             continue
         ckpt = train_dir / "checkpoints" / f"{step:06d}" / "pretrained_model"
-        eval_dir = out.parent / f"{out.name}_evals" / f"step_{step:06d}"
+        eval_dir = WORK / out.name / f"step_{step:06d}"  # videos and logs stay out of the results folder
         cmd = [str(bindir / "lerobot-eval"), f"--policy.path={ckpt}", "--env.type=rnd_mw", f"--env.task={a.task}",
                f"--eval.n_episodes={a.episodes}", "--eval.batch_size=10", "--policy.device=cpu",
                f"--seed={a.val_seed}", f"--output_dir={eval_dir}", *a.eval_arg]  # fmt: skip

@@ -48,6 +48,11 @@ def _train_dir(tmp_path, steps=(1500, 3000)):
     return train
 
 
+@pytest.fixture(autouse=True)
+def _work_in_tmp(tmp_path, monkeypatch):
+    monkeypatch.setattr(vc, "WORK", tmp_path / "work")
+
+
 def _fake_eval(calls, pattern):
     def run(cmd, **kwargs):
         calls.append(cmd)
@@ -84,6 +89,8 @@ def test_curve_evaluates_each_checkpoint_on_validation_seeds_and_resumes(tmp_pat
     assert res["rows"][0]["training_loss_near_step"] == pytest.approx(1 / 1500)
     assert all("--seed=100" in c and "--policy.denoise_step=refine" in c for c in calls)
     assert out.with_suffix(".png").exists()
+    assert all("/work/curve/step_" in next(a for a in c if a.startswith("--output_dir=")) for c in calls)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["curve.json", "curve.png", "train", "train.log", "work"]
     vc.main(argv)  # every checkpoint done: nothing is evaluated again
     assert len(calls) == 2
 
