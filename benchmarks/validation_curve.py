@@ -130,12 +130,18 @@ def main(argv=None) -> int:
         "title": f"{cfg['policy']['type']} on {a.task}, {cfg['steps']} steps planned, validation seeds "
                  f"{a.val_seed}-{a.val_seed + a.episodes - 1}",
         "train_dir": str(train_dir), "train_steps_planned": cfg["steps"], "eval_args": a.eval_arg,
-        "command": shlex.join(["python", "benchmarks/validation_curve.py", *(sys.argv[1:] if argv is None else argv)]),
         "training_loss": {str(k): v for k, v in sorted(losses.items())},
         "note": "validation seeds only (never the benchmark's evaluation seeds 1000+); a checkpoint before the "
                 "last is taken at a higher learning rate than a run that stops there (cosine schedule over "
                 "train_steps_planned)",
     })  # fmt: skip
+    command = shlex.join(
+        ["python", "benchmarks/validation_curve.py", *(sys.argv[1:] if argv is None else argv)]
+    )
+    if "command" in res:  # a file written before the list held one call
+        res["commands"] = [res.pop("command")]
+    if command not in res.setdefault("commands", []):
+        res["commands"].append(command)  # every distinct call, in order
     done = {r["step"] for r in res["rows"]}
     bindir = Path(sys.executable).parent
     env = {**os.environ, "MUJOCO_GL": os.environ.get("MUJOCO_GL", "egl"), "HF_HUB_OFFLINE": "1"}

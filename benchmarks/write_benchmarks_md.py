@@ -298,7 +298,8 @@ def validation_curve_section(res: dict, name: str) -> list[str]:
     lines = [
         f"### Success against training step: `{name}` (validation seeds, not the evaluation seeds)",
         "",
-        f"`{res['command']}`: {res['title']}. {res['note'].capitalize()}. JSON: [`{name}`](../benchmarks/results/{name}).",
+        " then ".join(f"`{c}`" for c in res.get("commands", [res.get("command")]))
+        + f": {res['title']}. {res['note'].capitalize()}. JSON: [`{name}`](../benchmarks/results/{name}).",
         "",
         "| step | success | 95% interval | episodes | training loss (logged nearest the step) |",
         "| ---: | ---: | --- | ---: | ---: |",

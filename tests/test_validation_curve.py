@@ -90,9 +90,20 @@ def test_curve_evaluates_each_checkpoint_on_validation_seeds_and_resumes(tmp_pat
     assert all("--seed=100" in c and "--policy.denoise_step=refine" in c for c in calls)
     assert out.with_suffix(".png").exists()
     assert all("/work/curve/step_" in next(a for a in c if a.startswith("--output_dir=")) for c in calls)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["curve.json", "curve.png", "train", "train.log", "work"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "curve.json",
+        "curve.png",
+        "train",
+        "train.log",
+        "work",
+    ]
     vc.main(argv)  # every checkpoint done: nothing is evaluated again
     assert len(calls) == 2
+    vc.main([*argv, "--steps", "3000"])
+    assert json.loads(out.with_suffix(".json").read_text())["commands"] == [
+        "python benchmarks/validation_curve.py " + " ".join(argv),
+        "python benchmarks/validation_curve.py " + " ".join([*argv, "--steps", "3000"]),
+    ]
 
 
 def test_curve_refuses_seeds_that_reach_the_evaluation_seeds(tmp_path):
