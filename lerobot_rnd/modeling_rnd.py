@@ -538,6 +538,7 @@ class RnDModel(nn.Module):
         out = {
             "obs_rgb": obs_rgb,
             "obs_points": obs_points,
+            "obs_tokens": history.get("obs_tokens"),
             "future_rgb": future_rgb,
             "future_points": future_points / cfg.point_map_scale,
             "patch_index": patch_index,
@@ -557,7 +558,7 @@ class RnDModel(nn.Module):
         with self._autocast(a.device.type):
             displacement, update, logits = network(
                 inputs["obs_rgb"], inputs["obs_points"], inputs["future_rgb"], inputs["future_points"],
-                gripper, timestep, a, patch_index=inputs["patch_index"],
+                gripper, timestep, a, patch_index=inputs["patch_index"], obs_tokens=inputs.get("obs_tokens"),
             )
         if displacement is not None:
             displacement = displacement.float().reshape(inputs["target_points"].shape)
@@ -654,7 +655,9 @@ class RnDModel(nn.Module):
         """
         a = noise
         logits = None
-        history = self.render_history(images, T_world_ee)  # the same for every step
+        history = self.render_history(images, T_world_ee)  # the same for every step, and so are its tokens:
+        with self._autocast(images.device.type):
+            history["obs_tokens"] = self.sampling_network.embed_observation(history["obs_rgb"], history["obs_points"])
         for i in range(len(self.inference_timesteps)):
             a, logits, composite = self.sampler_step(
                 images, T_world_ee, gripper, a, i, full_composite=record is not None, history=history

@@ -236,7 +236,10 @@ class RnDDenoiser(nn.Module):
         timestep: Tensor,
         noisy_action: Tensor | None,
         patch_index: Tensor | None = None,
+        obs_tokens: Tensor | None = None,
     ) -> tuple[Tensor | None, Tensor | None, Tensor]:
+        """`obs_tokens`: `embed_observation(obs_rgb, obs_points)` if already computed (the sampler computes it
+        once per chunk: the past/current frames do not change between denoising steps)."""
         b, n_obs, c = obs_rgb.shape[:3]
         t_h = self.horizon
         if bool(self.gripper_patches) != (patch_index is not None):
@@ -244,8 +247,8 @@ class RnDDenoiser(nn.Module):
                 f"gripper_patches={self.gripper_patches}: pass `patch_index` (B, T, C, K) exactly when "
                 "gripper_patches > 0."
             )
-        obs_tokens = self._embed_frames(obs_rgb, obs_points, sparse=False)  # (B, H, C, P, D)
-        obs_tokens = obs_tokens + self.patch_pos_embed[None, None, None]
+        if obs_tokens is None:
+            obs_tokens = self.embed_observation(obs_rgb, obs_points)  # (B, H, C, P, D)
         fut_tokens = self._embed_frames(future_rgb, future_points, sparse=patch_index is not None)  # (B,T,C,K,D)
         if patch_index is None:
             fut_tokens = fut_tokens + self.patch_pos_embed[None, None, None]
@@ -289,6 +292,11 @@ class RnDDenoiser(nn.Module):
                 p = self.patch_size
                 displacement = patches.reshape(b, t_h, c, k, 3, p * p).transpose(3, 4).reshape(b, t_h, c, 3, k * p * p)
         return displacement, action_update, gripper_logits
+
+    def embed_observation(self, obs_rgb: Tensor, obs_points: Tensor) -> Tensor:
+        """Past/current frames (B, H, C, 3, h, w) each -> their patch tokens (B, H, C, P, D), with the patch
+        position embedding (frame and view embeddings are added in `forward`)."""
+        return self._embed_frames(obs_rgb, obs_points, sparse=False) + self.patch_pos_embed[None, None, None]
 
     def _embed_frames(self, rgb: Tensor, points: Tensor, sparse: bool) -> Tensor:
         """Images and point maps (B, F', C, 3, h, w), or selected pixels (B, F', C, 3, K*p*p) when `sparse`

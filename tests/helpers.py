@@ -29,6 +29,14 @@ TINY_POLICY_KWARGS = dict(
 )
 
 
+class StandInNetwork(torch.nn.Module):
+    """Base of the tests' stand-ins for `RnDDenoiser`: no observation tokens to cache (`embed_observation` gives
+    None, so the sampler passes `obs_tokens=None`); subclasses define `forward` with the denoiser's arguments."""
+
+    def embed_observation(self, obs_rgb, obs_points):
+        return None
+
+
 def tiny_policy_flags() -> list[str]:
     """`TINY_POLICY_KWARGS` as lerobot-train flags (the device is passed separately)."""
     def value(v):

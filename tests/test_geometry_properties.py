@@ -33,6 +33,7 @@ from lerobot_rnd.geometry import (
     weighted_rigid_registration,
 )
 from lerobot_rnd.sampler import register_point_update
+from tests.helpers import StandInNetwork
 
 DTYPES = [torch.float64, torch.float32]
 METHODS = ["svd", "horn"]
@@ -593,7 +594,7 @@ def _world_point(p_k, T_world_cam):
     return _world_points(p_k[:, 5], T_world_cam[:, 5])[:, 0].numpy()
 
 
-class _GarbageDisplacementNetwork(torch.nn.Module):
+class _GarbageDisplacementNetwork(StandInNetwork):
     """Predicts a large random displacement and a fixed action update (the denoiser's interface)."""
 
     def __init__(self, update: torch.Tensor):
@@ -610,6 +611,7 @@ class _GarbageDisplacementNetwork(torch.nn.Module):
         timestep,
         noisy_action,
         patch_index=None,
+        obs_tokens=None,
     ):
         displacement = 10 * torch.randn(future_points.shape, generator=torch.Generator().manual_seed(0))
         return displacement, self.update, torch.ones(noisy_action.shape[:2])

@@ -59,10 +59,13 @@ class _OffsetNetwork(torch.nn.Module):
         super().__init__()
         self.model, self.inner = model, inner
 
+    def embed_observation(self, obs_rgb, obs_points):
+        return self.inner.embed_observation(obs_rgb, obs_points)
+
     def forward(self, obs_rgb, obs_points, future_rgb, future_points, gripper_state, timestep, noisy_action,
-                patch_index=None):
+                patch_index=None, obs_tokens=None):
         _, update, logits = self.inner(obs_rgb, obs_points, future_rgb, future_points, gripper_state, timestep,
-                                       noisy_action, patch_index=patch_index)
+                                       noisy_action, patch_index=patch_index, obs_tokens=obs_tokens)
         zero = self.model.normalize_displacement(torch.zeros_like(future_points).flatten(4))
         zero[:, :, 0] += 1.0
         return zero, update, logits

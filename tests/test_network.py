@@ -143,3 +143,27 @@ def test_conv_patch_embedding_is_patch_local_and_resolves_a_dot_inside_a_patch()
     assert nonlinear > 1e-4
     with pytest.raises(ValueError, match="divisible by 8"):
         patch_embedding("conv", 1, 16, 12)
+
+
+@pytest.mark.parametrize("gripper_patches", [0, 3])
+def test_precomputed_observation_tokens_give_the_same_outputs(gripper_patches):
+    """forward(..., obs_tokens=embed_observation(obs)) equals forward(...) computing them itself."""
+    net = _net(gripper_patches).eval()
+    rgb, pm, g, k, a = _inputs()
+    patch_index = None
+    if gripper_patches:
+        patch_index = torch.stack([torch.randperm(net.n_patches)[:gripper_patches] for _ in range(2 * 3 * 2)])
+        patch_index = patch_index.reshape(2, 3, 2, gripper_patches)
+    fut_rgb, fut_pm = rgb[:, 2:], pm[:, 2:]
+    if patch_index is not None:
+        pix = patch_pixel_index(patch_index, net.grid, net.patch_size)
+        fut_rgb, fut_pm = gather_patch_pixels(fut_rgb, pix), gather_patch_pixels(fut_pm, pix)
+    tokens = net.embed_observation(rgb[:, :2], pm[:, :2])
+    assert tokens.shape == (2, 2, 2, net.n_patches, 32)
+    with torch.no_grad():
+        ref = net(rgb[:, :2], pm[:, :2], fut_rgb, fut_pm, g, k, a, patch_index=patch_index)
+        got = net(rgb[:, :2], pm[:, :2], fut_rgb, fut_pm, g, k, a, patch_index=patch_index, obs_tokens=tokens)
+        flipped = net(rgb[:, :2].flip(-1), pm[:, :2], fut_rgb, fut_pm, g, k, a, patch_index=patch_index)
+    for r, o in zip(ref, got):
+        torch.testing.assert_close(o, r, atol=1e-6, rtol=0)
+    assert (flipped[1] - ref[1]).abs().max() > 1e-4  # the observation frames matter: the comparison can fail

@@ -6,6 +6,7 @@ import torch
 from scipy.spatial.transform import Rotation
 
 from lerobot_rnd.sampler import ddim_step, displacement_target, interpolation_step, register_point_update
+from tests.helpers import StandInNetwork
 from tests.helpers import make_policy as _make_policy
 
 
@@ -88,7 +89,7 @@ def _exact_displacement(model, future_points, T_world_ee_now, T_ee_from, T_ee_to
     return (moved - points).reshape(future_points.shape)
 
 
-class _OracleNetwork(torch.nn.Module):
+class _OracleNetwork(StandInNetwork):
     """Stands in for the ViT: returns the true image-space displacement and action update for a known target.
 
     The displacement is computed from the point map it is given and the camera poses, independently of the
@@ -102,7 +103,7 @@ class _OracleNetwork(torch.nn.Module):
         self.T_world_ee_now = T_world_ee_now  # (B, 4, 4)
 
     def forward(self, obs_rgb, obs_points, future_rgb, future_points, gripper_state, timestep, noisy_action,
-                patch_index=None):
+                patch_index=None, obs_tokens=None):
         from lerobot_rnd.geometry import pose_from_action
 
         m = self.model
@@ -116,7 +117,7 @@ class _OracleNetwork(torch.nn.Module):
         return displacement, update, logits
 
 
-class _ZeroDisplacementNetwork(torch.nn.Module):
+class _ZeroDisplacementNetwork(StandInNetwork):
     """Predicts "the gripper is already where it should be": zero metric displacement, no action update."""
 
     def __init__(self, model):
@@ -124,7 +125,7 @@ class _ZeroDisplacementNetwork(torch.nn.Module):
         self.model = model
 
     def forward(self, obs_rgb, obs_points, future_rgb, future_points, gripper_state, timestep, noisy_action,
-                patch_index=None):
+                patch_index=None, obs_tokens=None):
         b, t = noisy_action.shape[:2]
         zero_metric = torch.zeros_like(future_points)
         return self.model.normalize_displacement(zero_metric.flatten(4)).reshape(zero_metric.shape), torch.zeros_like(noisy_action), torch.ones(b, t)
@@ -302,7 +303,7 @@ def test_refine_tells_the_network_low_noise_after_the_first_step_and_jumps_to_th
         target = torch.full((3, 4, 6), 0.25)
         steps, states = [], []
 
-        class Constant(torch.nn.Module):  # predicts the constant target's action update; records the timesteps
+        class Constant(StandInNetwork):  # predicts the constant target's action update; records the timesteps
             def forward(self, *args, **kwargs):
                 timestep, noisy = args[5], args[6]
                 steps.append(timestep.tolist())
@@ -321,3 +322,35 @@ def test_refine_tells_the_network_low_noise_after_the_first_step_and_jumps_to_th
     for x in refine_states[1:]:  # after the first jump, every input is the clean estimate
         torch.testing.assert_close(x, target)
     assert not torch.allclose(ddim_states[1], target, atol=1e-3)  # DDIM keeps noise in the intermediate steps
+
+
+@pytest.mark.parametrize("gripper_patches", [0, 4])
+def test_denoise_embeds_the_observation_once_per_chunk_and_matches_the_uncached_sampler(
+    toy_dataset_root, gripper_patches
+):
+    """The past/current frames' patch tokens are computed once per chunk, not in each of the 5 network passes,
+    and the chunk is the one the sampler gives when every pass embeds them itself."""
+    policy, _ = _make_policy(toy_dataset_root, variant="AI", gripper_patches=gripper_patches)
+    model = policy.model.eval()
+    images, T_world_ee, gripper = _observation(model)
+    net = model.sampling_network
+    embed = net.embed_observation
+    calls = []
+
+    def counting(obs_rgb, obs_points, skip_first=False):
+        calls.append(obs_rgb.shape)
+        return None if skip_first and len(calls) == 1 else embed(obs_rgb, obs_points)
+
+    noise = torch.randn(3, 4, 6, generator=torch.Generator().manual_seed(5))
+    with torch.no_grad():
+        net.embed_observation = counting
+        cached, cached_logits = model.denoise(images, T_world_ee, gripper, noise)
+        n_cached = len(calls)
+        calls.clear()
+        net.embed_observation = lambda rgb, pts: counting(rgb, pts, skip_first=True)  # no cache: every pass embeds
+        uncached, uncached_logits = model.denoise(images, T_world_ee, gripper, noise)
+    passes = model.config.num_inference_steps + int(model.config.final_action_step)
+    assert n_cached == 1
+    assert len(calls) == 1 + passes
+    torch.testing.assert_close(cached, uncached, atol=1e-6, rtol=0)
+    torch.testing.assert_close(cached_logits, uncached_logits, atol=1e-5, rtol=0)
