@@ -60,6 +60,8 @@ ROWS = {
     "ema": (["--policy.use_ema=true"], None, []),  # evaluate an EMA of the weights (decay 0.999), as DP does
     "ema_refine": ([], "ema", ["--policy.denoise_step=refine"]),  # the research code's inference schedule
     "camera_dropout": (["--policy.camera_dropout=0.3"], None, []),  # a sample loses one of its 2 views w.p. 0.3
+    # the paper's 16-px patches (a 8x8 grid at 128 px, against 4x4): 8 gripper patches cover what 4 of 32 px did
+    "patch16": (["--policy.patch_size=16", "--policy.gripper_patches=8"], None, []),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
@@ -100,8 +102,8 @@ def check_reused_checkpoint(ckpt: Path, train_args: list[str], steps: int, data:
 
 # The training switches a row's checkpoint was trained with, read back from its train_config.json: the config's
 # defaults change between rows' runs (patch_embed became "conv"), so a row's overrides alone don't say what ran.
-RECORDED_SWITCHES = ("patch_embed", "embedding_init_std", "history_rgb_overlay", "image_shift_augment", "use_ema",
-                     "dropout", "point_update", "denoise_step")  # fmt: skip
+RECORDED_SWITCHES = ("patch_size", "gripper_patches", "patch_embed", "embedding_init_std", "history_rgb_overlay",
+                     "image_shift_augment", "use_ema", "dropout", "point_update", "denoise_step")  # fmt: skip
 
 
 def trained_switches(ckpt: Path) -> dict:

@@ -187,7 +187,10 @@ def ablation_section(res: dict, name: str) -> list[str]:
     ]
     for row in res["rows"]:
         lo, hi = row["ci95"]
-        embed = row.get("trained_switches", {}).get("patch_embed", "–")
+        switches = row.get("trained_switches", {})
+        embed = switches.get("patch_embed", "–")
+        if "patch_size" in switches:
+            embed += f", {switches['patch_size']} px"
         bf16 = row.get("bf16_autocast_on_this_cpu")
         precision = "–" if bf16 is None else ("bf16 autocast" if bf16 else "float32")
         lines.append(
