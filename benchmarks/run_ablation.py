@@ -18,6 +18,9 @@ A training row can reuse a checkpoint trained elsewhere with the same switches, 
 validation here and, once chosen, the benchmark's test seeds: `--checkpoint shift_aug=<pretrained_model dir>`.
 A checkpoint whose train_config.json differs from its row is refused.
 
+The evaluation env is built with the demos' cameras (and flips, image size, state layout), read from the
+dataset's `meta/rnd_recording.json`: `--data` recorded with `--cameras corner2,topview` is evaluated with them.
+
 Data: `lerobot-rnd-record --task reach-v3 --episodes 10 --root data/mw_reach-v3_10 --repo-id local/mw_reach-v3_10
 --seed 0` (recorded by this script when missing).
 """
@@ -115,6 +118,27 @@ def trained_switches(ckpt: Path) -> dict:
     return {k: policy[k] for k in RECORDED_SWITCHES if k in policy}
 
 
+def eval_env_args(rec_settings: dict) -> list[str]:
+    """The `--env.*` flags of lerobot-eval that rebuild the demos' observation (cameras, flips, image size, state).
+
+    A checkpoint expects the image keys and calibration of the cameras it was trained on, so a dataset recorded
+    with `--cameras corner2,topview` must be evaluated with those cameras, not the env's defaults.
+    """
+    args = [f"--env.camera_names=[{','.join(recorded_setting(rec_settings, 'cameras'))}]"]
+    flips = recorded_setting(rec_settings, "flip_cameras") or []
+    if flips:
+        args.append(f"--env.flip_cameras=[{','.join(flips)}]")
+    size = recorded_setting(rec_settings, "image_size")
+    if size is not None and int(size) != 128:
+        args += [f"--env.observation_height={size}", f"--env.observation_width={size}"]
+    if recorded_setting(rec_settings, "lerobot_corner2_pos") is False:
+        args.append("--env.use_lerobot_corner2_pos=false")
+    layout = recorded_setting(rec_settings, "state_layout")
+    if layout not in (None, "pos_grip_quat"):
+        args.append(f"--env.state_layout={layout}")
+    return args
+
+
 def reused_train_command(ckpt: Path) -> list[str] | None:
     """The lerobot-train command of a run_benchmark.py checkpoint (<run>/train/checkpoints/N/pretrained_model)."""
     run_json = ckpt.parents[3] / "run.json"
@@ -158,8 +182,10 @@ def main(argv=None) -> int:
     res = json.loads(out_json.read_text()) if out_json.exists() else {"rows": []}
     rec_settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
     expert = recorded_setting(rec_settings, "expert_reach_target")
+    cameras = list(recorded_setting(rec_settings, "cameras"))
     for row in res["rows"]:
         row.setdefault("demos_expert_reach_target", expert)
+        row.setdefault("demos_cameras", cameras)
     done = {r["name"] for r in res["rows"]}
     res["description"] = (
         f"`python benchmarks/run_ablation.py{'' if out_json == OUT_JSON else ' --out ' + a.out} ...` (each row's "
@@ -191,7 +217,7 @@ def main(argv=None) -> int:
         eval_dir = work / name / f"val_{a.val_seed}"
         eval_cmd = [str(bindir / "lerobot-eval"), f"--policy.path={ckpt}", "--env.type=rnd_mw", "--env.task=reach-v3",
                     f"--eval.n_episodes={a.episodes}", "--eval.batch_size=10", "--policy.device=cpu",
-                    f"--seed={a.val_seed}", f"--output_dir={eval_dir}", *sampler_args]  # fmt: skip
+                    f"--seed={a.val_seed}", f"--output_dir={eval_dir}", *eval_env_args(rec_settings), *sampler_args]  # fmt: skip
         if not (eval_dir / "eval_info.json").exists():
             print(f"[{name}] evaluating ...", flush=True)
             sh(eval_cmd, work / name / "eval.log")
@@ -206,7 +232,7 @@ def main(argv=None) -> int:
             "success_rate": sum(succ) / len(succ), "ci95": [lo, hi], "val_seeds": [a.val_seed, a.val_seed + len(succ) - 1],
             "per_episode_success": succ, "commands": {"train": train_cmd, "eval": eval_cmd},
             "trained_switches": trained_switches(ckpt), "bf16_autocast_on_this_cpu": cpu_bf16_is_fast(),
-            "demos_expert_reach_target": expert,
+            "demos_expert_reach_target": expert, "demos_cameras": cameras,
             "ablation_command": shlex.join(["python", "benchmarks/run_ablation.py", *(sys.argv[1:] if argv is None else argv)]),
             "seconds": round(time.time() - t0, 1),
         })  # fmt: skip

@@ -181,9 +181,9 @@ def ablation_section(res: dict, name: str) -> list[str]:
         "",
         res.get("description", "") + f" JSON: [`{name}`](../benchmarks/results/{name}).",
         "",
-        "| row | demos' expert | patch embedding | network precision | training switches | sampler switches | steps | "
+        "| row | demos' expert | cameras | patch embedding | network precision | training switches | sampler switches | steps | "
         "final loss | success | 95% interval | episodes |",
-        "| --- | --- | --- | --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
+        "| --- | --- | --- | --- | --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
     ]
     for row in res["rows"]:
         lo, hi = row["ci95"]
@@ -194,7 +194,8 @@ def ablation_section(res: dict, name: str) -> list[str]:
         bf16 = row.get("bf16_autocast_on_this_cpu")
         precision = "–" if bf16 is None else ("bf16 autocast" if bf16 else "float32")
         lines.append(
-            f"| {row['name']} | {row.get('demos_expert_reach_target', '–')} | {embed} | {precision} | `{row['train']}` | "
+            f"| {row['name']} | {row.get('demos_expert_reach_target', '–')} | "
+            f"{' + '.join(row.get('demos_cameras') or ['corner2', 'behindGripper'])} | {embed} | {precision} | `{row['train']}` | "
             f"`{row['sampler']}` | {row['steps']} | "
             f"{row['final_loss'] if row.get('final_loss') is not None else '–'} | {100 * row['success_rate']:.0f}% | "
             f"{100 * lo:.0f}–{100 * hi:.0f}% | {row['episodes']} |"

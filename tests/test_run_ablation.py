@@ -61,3 +61,23 @@ def test_a_row_records_what_its_checkpoint_was_trained_with(tmp_path):
     ckpt = _checkpoint(tmp_path, patch_embed="conv", use_ema=True, dim_model=256)
     assert trained_switches(ckpt) == {"patch_embed": "conv", "image_shift_augment": 0, "use_ema": True, "dropout": 0.0}
     assert trained_switches(tmp_path / "missing") == {}
+
+
+def test_the_evaluation_env_is_built_with_the_demos_cameras():
+    """Demos recorded with other cameras than the env's defaults are evaluated with those cameras (draccus parses
+    the flags into the env config that lerobot-eval builds)."""
+    import draccus
+
+    from benchmarks.run_ablation import eval_env_args
+    from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
+
+    settings = {"cameras": ["corner2", "topview"], "flip_cameras": ["corner2"], "image_size": 96,
+                "lerobot_corner2_pos": False, "state_layout": "pos_grip_quat_mocap"}  # fmt: skip
+    args = [a.removeprefix("--env.") for a in eval_env_args(settings)]
+    cfg = draccus.parse(RnDMetaWorldEnvConfig, args=[f"--{a}" for a in args])
+    assert cfg.camera_names == ["corner2", "topview"] and cfg.flip_cameras == ["corner2"]
+    assert (cfg.observation_height, cfg.observation_width) == (96, 96)
+    assert cfg.use_lerobot_corner2_pos is False and cfg.state_layout == "pos_grip_quat_mocap"
+    default = draccus.parse(RnDMetaWorldEnvConfig, args=[
+        f"--{a.removeprefix('--env.')}" for a in eval_env_args({"cameras": ["corner2", "behindGripper"]})])
+    assert default.camera_names == ["corner2", "behindGripper"] and default.observation_height == 128

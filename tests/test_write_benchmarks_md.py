@@ -52,3 +52,15 @@ def test_ablation_rows_show_the_patch_embedding_and_precision_they_ran_with():
     lines = ablation_section({"rows": [row, {**old, "name": "old"}]}, "x.json")
     assert any(line.startswith("| ema |") and "| conv | float32 |" in line for line in lines)
     assert any(line.startswith("| old |") and "| – | – |" in line for line in lines)
+
+
+def test_ablation_rows_show_the_demos_cameras():
+    from benchmarks.write_benchmarks_md import ablation_section
+
+    row = {"name": "c2top", "train": "(config defaults)", "sampler": "(config defaults)", "steps": 3000,
+           "final_loss": 0.03, "success_rate": 0.5, "ci95": [0.3, 0.7], "episodes": 20,
+           "demos_cameras": ["corner2", "topview"]}  # fmt: skip
+    old = {k: v for k, v in row.items() if k != "demos_cameras"}  # rows written before cameras were recorded
+    lines = ablation_section({"rows": [row, {**old, "name": "old"}]}, "x.json")
+    assert any(line.startswith("| c2top |") and "| corner2 + topview |" in line for line in lines)
+    assert any(line.startswith("| old |") and "| corner2 + behindGripper |" in line for line in lines)
