@@ -169,10 +169,12 @@ class RnDPolicy(PreTrainedPolicy):
         """Stack the cameras into batch[OBS_IMAGES] (..., C, 3, h, w), resized to the network's image size."""
         missing = [key for key in self.config.image_features if key not in batch]
         if missing:
+            names = ",".join(key.removeprefix(OBS_IMAGES + ".") for key in self.config.image_features)
             raise KeyError(
                 f"R&D expects camera keys {list(self.config.image_features)} but the batch lacks {missing} "
-                f"(batch keys: {sorted(batch)}). Rename the cameras (e.g. lerobot-eval --rename_map) or "
-                "calibrate these cameras."
+                f"(batch keys: {sorted(batch)}). Evaluate with the cameras the policy was trained on (the plugin's "
+                f"sim envs: --env.camera_names=[{names}]), "
+                "rename the cameras (lerobot-eval --rename_map) or calibrate these cameras."
             )
         batch = dict(batch)
         images = [

@@ -44,6 +44,15 @@ def test_select_action_and_chunk_shapes(toy_dataset_root, variant):
     assert len(policy._queues["action"]) == 0  # n_action_steps = 2 consumed
 
 
+def test_a_missing_camera_is_named_with_the_flag_that_fixes_it(toy_dataset_root):
+    policy, _ = make_policy(toy_dataset_root)
+    policy.eval()
+    obs = {"observation.images.front": torch.rand(1, 3, 64, 64), "observation.state": torch.zeros(1, 4)}
+    with pytest.raises(KeyError, match=r"lacks \['observation.images.wrist'\]") as err:
+        policy.predict_action_chunk(obs)
+    assert "--env.camera_names=[front,wrist]" in str(err.value)
+
+
 def test_save_pretrained_round_trip_is_bit_identical(toy_dataset_root, tmp_path):
     from lerobot_rnd.modeling_rnd import RnDPolicy
 
