@@ -65,6 +65,10 @@ ROWS = {
     "camera_dropout": (["--policy.camera_dropout=0.3"], None, []),  # a sample loses one of its 2 views w.p. 0.3
     # the paper's 16-px patches (a 8x8 grid at 128 px, against 4x4): 8 gripper patches cover what 4 of 32 px did
     "patch16": (["--policy.patch_size=16", "--policy.gripper_patches=8"], None, []),
+    # today's config defaults trained again (the rows above ran under earlier defaults), and the same checkpoint
+    # re-planning every 4 steps instead of executing the whole 8-step chunk open loop (more closed-loop looks)
+    "current_defaults": ([], None, []),
+    "replan_every_4": ([], "current_defaults", ["--policy.n_action_steps=4"]),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }

@@ -56,12 +56,20 @@ def cpu_model():
         return platform.processor() or platform.machine()
 
 
+def bf16_native():
+    try:  # whether the CPU tier's autocast_bf16 ran (native bf16) or was skipped (AVX2: float32, slower)
+        from lerobot_rnd.precision import cpu_bf16_is_fast
+        return cpu_bf16_is_fast()
+    except ImportError:
+        return None
+
+
 summary = {
     "command": f"TASK={task} EPISODES={episodes} STEPS={steps} bash examples/quickstart.sh",
     "task": task, "demos": int(episodes), "steps": int(steps), "eval_episodes": len(succ),
     "successes": sum(succ), "success_rate": sum(succ) / len(succ),
     "seconds": {"record": t1 - t0, "train": t2 - t1, "eval": t3 - t2, "total": t3 - t0},
-    "machine": {"cpus": os.cpu_count(), "cpu": cpu_model()},
+    "machine": {"cpus": os.cpu_count(), "cpu": cpu_model(), "bf16_autocast": bf16_native()},
     "code_commit": code_commit(),
 }
 json.dump(summary, open(f"{out}/summary.json", "w"), indent=1)

@@ -81,3 +81,28 @@ def test_the_evaluation_env_is_built_with_the_demos_cameras():
     default = draccus.parse(RnDMetaWorldEnvConfig, args=[
         f"--{a.removeprefix('--env.')}" for a in eval_env_args({"cameras": ["corner2", "behindGripper"]})])
     assert default.camera_names == ["corner2", "behindGripper"] and default.observation_height == 128
+
+
+@pytest.mark.parametrize("row", sorted(ROWS))
+def test_every_row_switch_is_a_config_field_that_parses(row):
+    """A misspelt or out-of-range switch would otherwise surface only after the row's training (an hour): draccus
+    parses each row's training and sampler flags into RnDConfig as lerobot-train / lerobot-eval do."""
+    import draccus
+
+    from lerobot_rnd.configuration_rnd import RnDConfig
+
+    train_args, _, sampler_args = ROWS[row]
+    args = [a.replace("--policy.", "--", 1) for a in (*train_args, *sampler_args)]
+    cfg = draccus.parse(RnDConfig, args=args)
+    for arg in args:
+        key, _, val = arg.removeprefix("--").partition("=")
+        assert str(getattr(cfg, key)).lower() == val.lower(), (row, key)
+
+
+def test_a_misspelt_row_switch_is_refused():
+    import draccus
+
+    from lerobot_rnd.configuration_rnd import RnDConfig
+
+    with pytest.raises((SystemExit, draccus.utils.ParsingError, ValueError)):
+        draccus.parse(RnDConfig, args=["--n_actions_steps=4"])
