@@ -96,7 +96,10 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
         f"({res['settings']['eval_episodes_per_cell']} episodes per cell, {res['settings']['episode_length']}-step "
         "episodes, `lerobot-eval --env.type=rnd_mw`). Success rate with its Wilson 95% interval. JSON per run: "
         f"[`benchmarks/results/{folder}/runs/`](../benchmarks/results/{folder}/runs/); all runs: "
-        f"[`benchmarks/results/{folder}/results.json`](../benchmarks/results/{folder}/results.json).",
+        f"[`benchmarks/results/{folder}/results.json`](../benchmarks/results/{folder}/results.json)." +
+        (f" This folder trains nothing: its runs are copies of run JSONs from other folders, listed in "
+         f"[`SOURCES.md`](../benchmarks/results/{folder}/SOURCES.md), and the command above only rewrites the report."
+         if (RESULTS / folder / "SOURCES.md").exists() else ""),
         "",
         "| method | task | demos | success | 95% interval | episodes | params | train loop | eval | final loss |",
         "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |",

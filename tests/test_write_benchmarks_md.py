@@ -64,3 +64,20 @@ def test_ablation_rows_show_the_demos_cameras():
     lines = ablation_section({"rows": [row, {**old, "name": "old"}]}, "x.json")
     assert any(line.startswith("| c2top |") and "| corner2 + topview |" in line for line in lines)
     assert any(line.startswith("| old |") and "| corner2 + behindGripper |" in line for line in lines)
+
+
+def test_a_folder_of_collected_runs_says_so_and_links_its_sources(tmp_path, monkeypatch):
+    import json
+    from pathlib import Path
+
+    import benchmarks.write_benchmarks_md as w
+
+    res = json.loads((Path(w.RESULTS) / "cpu_3000_drawer" / "results.json").read_text())
+    monkeypatch.setattr(w, "RESULTS", tmp_path)
+    (tmp_path / "trained_here").mkdir()
+    (tmp_path / "collected").mkdir()
+    (tmp_path / "collected" / "SOURCES.md").write_text("# where these runs come from\n")
+    trained = "\n".join(w.cpu_benchmark_section(res, "trained_here", "trained_here"))
+    collected = "\n".join(w.cpu_benchmark_section(res, "collected", "collected"))
+    assert "trains nothing" not in trained
+    assert "trains nothing" in collected and "benchmarks/results/collected/SOURCES.md" in collected
