@@ -78,6 +78,24 @@ def test_reports_from_results(tmp_path):
     assert (tmp_path / "plot.png").stat().st_size > 1000
 
 
+def test_the_mean_bar_carries_the_pooled_interval_of_the_three_tasks(tmp_path):
+    # the 3,000-step CPU table: R&D-AI 50/50 drawer, 47/50 button, 26/50 reach -> 123/150, Wilson 75.1-87.3 %
+    res = _fake_results(tmp_path)
+    proto = next(r for r in res["runs"] if r["method"] == "rnd_ai")
+    tasks = {"drawer-close-v3": 50, "button-press-topdown-v3": 47, "reach-v3": 26}
+    res["runs"] = [dict(proto, task=t, demos=10, successes=k) for t, k in tasks.items()]
+    res["runs"].append(dict(proto, method="act", task="reach-v3", demos=10, successes=29))  # ACT lacks two tasks
+    res["benchmark"].update(tasks=list(tasks), demos=[10], methods=["rnd_ai", "act"])
+    panels, bars = reports.success_bars(res)
+    assert panels == [*tasks, "mean over tasks"]
+    mean = dict(bars["rnd_ai"])[3]
+    assert (mean["k"], mean["n"]) == (123, 150)
+    assert mean["lo"] == pytest.approx(0.7508, abs=1e-3) and mean["hi"] == pytest.approx(0.8732, abs=1e-3)
+    assert [i for i, _ in bars["act"]] == [2]  # no mean bar for a method that lacks a task
+    reports.plot_success_per_task(res, tmp_path / "bars.png")
+    assert (tmp_path / "bars.png").stat().st_size > 1000
+
+
 def _dry_run(tmp_path, *extra):
     out = subprocess.run(
         [sys.executable, str(SCRIPT), "--scale", "smoke", "--out", str(tmp_path / "out"),

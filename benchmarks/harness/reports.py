@@ -220,30 +220,40 @@ def plot_success_vs_demos(res: dict, path: Path) -> None:
     plt.close(fig)
 
 
+def success_bars(res: dict) -> tuple[list[str], dict[str, list[tuple[int, dict]]]]:
+    """The bars of `plot_success_per_task`: the panels (tasks, then "mean over tasks" when there are several) and,
+    per method, (panel index, cell) pairs. A cell pools every demo count; the mean panel pools every episode of
+    the benchmark's tasks, as the tables' "average" column does, with its Wilson interval. A method missing a
+    task has no mean bar."""
+    b, runs = res["benchmark"], res["runs"]
+    panels = list(b["tasks"]) + (["mean over tasks"] if len(b["tasks"]) > 1 else [])
+    bars: dict[str, list[tuple[int, dict]]] = {}
+    for m in b["methods"]:
+        bars[m] = []
+        for i, panel in enumerate(panels):
+            if panel == "mean over tasks":
+                if any(cell_stats(runs, m, t, None) is None for t in b["tasks"]):
+                    continue
+                s = cell_stats([r for r in runs if r["task"] in b["tasks"]], m, None, None)
+            else:
+                s = cell_stats(runs, m, panel, None)
+            if s is not None:
+                bars[m].append((i, s))
+    return panels, bars
+
+
 def plot_success_per_task(res: dict, path: Path) -> None:
     """Bars: success per task (and the mean over tasks) per method, Wilson 95% intervals, all demo counts pooled."""
     plt = _mpl()
-    b, runs = res["benchmark"], res["runs"]
-    panels = list(b["tasks"]) + (["mean over tasks"] if len(b["tasks"]) > 1 else [])
+    b = res["benchmark"]
+    panels, bars = success_bars(res)
     fig, ax = plt.subplots(figsize=(1.6 + 1.5 * len(panels) * max(1, len(b["methods"])) / 3, 3.6))
     width = 0.8 / max(1, len(b["methods"]))
     for j, m in enumerate(b["methods"]):
-        xs, ys, lo, hi = [], [], [], []
-        for i, panel in enumerate(panels):
-            if panel == "mean over tasks":
-                cells = [cell_stats(runs, m, t, None) for t in b["tasks"]]
-                if any(c is None for c in cells):
-                    continue
-                rate = sum(c["rate"] for c in cells) / len(cells)
-                s = {"rate": rate, "lo": rate, "hi": rate}
-            else:
-                s = cell_stats(runs, m, panel, None)
-            if s is None:
-                continue
-            xs.append(i + (j - (len(b["methods"]) - 1) / 2) * width)
-            ys.append(100 * s["rate"])
-            lo.append(100 * (s["rate"] - s["lo"]))
-            hi.append(100 * (s["hi"] - s["rate"]))
+        xs = [i + (j - (len(b["methods"]) - 1) / 2) * width for i, _ in bars[m]]
+        ys = [100 * s["rate"] for _, s in bars[m]]
+        lo = [100 * (s["rate"] - s["lo"]) for _, s in bars[m]]
+        hi = [100 * (s["hi"] - s["rate"]) for _, s in bars[m]]
         if xs:
             ax.bar(xs, ys, width=width, yerr=[lo, hi], capsize=3, label=METHODS[m][1])
     ax.set_xticks(range(len(panels)))
