@@ -187,13 +187,15 @@ def main(argv=None) -> int:
     rec_settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
     expert = recorded_setting(rec_settings, "expert_reach_target")
     cameras = list(recorded_setting(rec_settings, "cameras"))
+    n_demos = json.loads((data / "meta" / "info.json").read_text())["total_episodes"]
     for row in res["rows"]:
         row.setdefault("demos_expert_reach_target", expert)
         row.setdefault("demos_cameras", cameras)
     done = {r["name"] for r in res["rows"]}
     res["description"] = (
         f"`python benchmarks/run_ablation.py{'' if out_json == OUT_JSON else ' --out ' + a.out} ...` (each row's "
-        "`ablation_command` has the whole call; R&D-AI CPU tier, 10 demos of reach-v3 recorded with seed 0, "
+        f"`ablation_command` has the whole call; R&D-AI CPU tier, {n_demos} demos of reach-v3 recorded with seed "
+        f"{recorded_setting(rec_settings, 'seed')}, "
         "validation seeds from 100: never the evaluation seeds). Rows sharing a checkpoint differ only in "
         "the sampler. `demos_expert_reach_target` says which expert recorded the demos: 'hand' is MetaWorld's "
         "own reach policy (demos end 3.4-4.9 cm from the goal), 'tcp' the corrected one."
@@ -236,7 +238,7 @@ def main(argv=None) -> int:
             "success_rate": sum(succ) / len(succ), "ci95": [lo, hi], "val_seeds": [a.val_seed, a.val_seed + len(succ) - 1],
             "per_episode_success": succ, "commands": {"train": train_cmd, "eval": eval_cmd},
             "trained_switches": trained_switches(ckpt), "bf16_autocast_on_this_cpu": cpu_bf16_is_fast(),
-            "demos_expert_reach_target": expert, "demos_cameras": cameras,
+            "demos_expert_reach_target": expert, "demos_cameras": cameras, "demos": n_demos,
             "ablation_command": shlex.join(["python", "benchmarks/run_ablation.py", *(sys.argv[1:] if argv is None else argv)]),
             "seconds": round(time.time() - t0, 1),
         })  # fmt: skip

@@ -66,6 +66,17 @@ def test_ablation_rows_show_the_demos_cameras():
     assert any(line.startswith("| old |") and "| corner2 + behindGripper |" in line for line in lines)
 
 
+def test_ablation_rows_show_how_many_demos_they_trained_on():
+    from benchmarks.write_benchmarks_md import ablation_section
+
+    row = {"name": "n20", "train": "(config defaults)", "sampler": "(config defaults)", "steps": 3000,
+           "final_loss": 0.03, "success_rate": 0.5, "ci95": [0.3, 0.7], "episodes": 20, "demos": 20}  # fmt: skip
+    old = {k: v for k, v in row.items() if k != "demos"}  # rows written before the count was recorded: 10 demos
+    lines = ablation_section({"rows": [row, {**old, "name": "old"}]}, "x.json")
+    assert any(line.startswith("| n20 | 20 |") for line in lines)
+    assert any(line.startswith("| old | 10 |") for line in lines)
+
+
 def test_a_folder_of_collected_runs_says_so_and_links_its_sources(tmp_path, monkeypatch):
     import json
     from pathlib import Path
