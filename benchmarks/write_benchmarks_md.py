@@ -94,19 +94,20 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
         f"{res['settings']['matched']['batch_size']} for every method, demos recorded with seed "
         f"{res['settings']['record_seed']}, evaluation seeds from {res['settings']['eval_seed']} "
         f"({res['settings']['eval_episodes_per_cell']} episodes per cell, {res['settings']['episode_length']}-step "
-        "episodes, `lerobot-eval --env.type=rnd_mw`). Success rate with its Wilson 95% interval. JSON per run: "
-        f"[`benchmarks/results/{folder}/runs/`](../benchmarks/results/{folder}/runs/); all runs: "
+        "episodes, `lerobot-eval --env.type=rnd_mw`). Success rate with its Wilson 95% interval. "
+        + (f"JSON per run: [`benchmarks/results/{folder}/runs/`](../benchmarks/results/{folder}/runs/); "
+           if not all(r.get("collected_from") for r in runs) else "") +
+        "All runs: "
         f"[`benchmarks/results/{folder}/results.json`](../benchmarks/results/{folder}/results.json)." +
-        (f" This folder trains nothing: its runs are copies of run JSONs from other folders, listed in "
-         f"[`SOURCES.md`](../benchmarks/results/{folder}/SOURCES.md), and the command above only rewrites the report."
-         if (RESULTS / folder / "SOURCES.md").exists() else ""),
+        (f" {_collected_sentence(runs, folder)}" if any(r.get("collected_from") for r in runs) else ""),
         "",
         "| method | task | demos | success | 95% interval | episodes | params | train loop | eval | final loss |",
         "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
     ]
     notes = []
     for r in runs:
-        run_json = RESULTS / folder / "runs" / f"{r['method']}__{r['task']}__n{r['demos']}__seed{r.get('seed', 0)}.json"
+        run_json = (REPO / r["collected_from"] if r.get("collected_from") else
+                    RESULTS / folder / "runs" / f"{r['method']}__{r['task']}__n{r['demos']}__seed{r.get('seed', 0)}.json")  # fmt: skip
         note = (_load(run_json) or {}).get("note")
         if note:
             notes.append(note)
@@ -176,6 +177,18 @@ def generalisation_section(res: dict, folder: str) -> list[str]:
             table.append(f"| {r['label']} | {r['demos']} | " + " | ".join(cells) + " |")
         lines += table + [""]
     return lines
+
+
+def _collected_sentence(runs: list[dict], folder: str) -> str:
+    """Where the runs that another benchmark trained come from (run_benchmark.py --collect-from)."""
+    collected = [r for r in runs if r.get("collected_from")]
+    sources = sorted({Path(r["collected_from"]).parent.parent.name for r in collected})
+    own = "trains nothing" if len(collected) == len(runs) else f"trains {len(runs) - len(collected)} of its runs"
+    count = f"{len(collected)} run is" if len(collected) == 1 else f"{len(collected)} runs are"
+    return (f"This folder {own}: {count} read from "
+            + ", ".join(f"[`{s}`](../benchmarks/results/{s}/)" for s in sources)
+            + f" (`--collect-from`; [`results.md`](../benchmarks/results/{folder}/results.md) names each run's "
+            "source), so the command above trains only what none of them holds.")
 
 
 def ablation_section(res: dict, name: str) -> list[str]:

@@ -252,6 +252,57 @@ def test_a_committed_run_result_is_skipped_on_a_fresh_work_dir(tmp_path):
     assert runs[0]["status"] == "done" and runs[0]["successes"] == 1 and runs[0]["loss_curve"] == [[1, 0.5], [2, 0.4]]
 
 
+def _source_folder(folder: Path, steps: int, successes: dict[str, int]) -> None:
+    """A results folder as another benchmark leaves it: results.json (settings) and runs/<run>.json."""
+    (folder / "runs").mkdir(parents=True)
+    settings = {"matched": {"steps": steps, "batch_size": 4}, "record_seed": 0, "eval_seed": 1000,
+                "episode_length": 50, "eval_episodes_per_cell": 2}  # fmt: skip
+    (folder / "results.json").write_text(json.dumps({"benchmark": {"protocol": "random"}, "settings": settings}))
+    for method, k in successes.items():
+        st = {"status": "done", "method": method, "task": "reach-v3", "demos": 3, "seed": 0,
+              "eval_chunks": {"0:2": {"successes": [True] * k + [False] * (2 - k), "wall_s": 1.0, "dir": "x"}}}
+        (folder / "runs" / f"{method}__reach-v3__n3__seed0.json").write_text(json.dumps(st))
+
+
+def test_collect_from_takes_finished_runs_from_other_folders_without_copying_them(tmp_path):
+    _source_folder(tmp_path / "first", 10, {"act": 2})
+    _source_folder(tmp_path / "second", 10, {"act": 0, "diffusion": 1})
+    args = ["--scale", "smoke", "--methods", "act,diffusion,rnd_ai", "--tasks", "reach-v3", "--demos", "3",
+            "--steps", "10", "--batch-size", "4", "--eval-episodes", "2", "--episode-length", "50",
+            "--out", str(tmp_path / "o"), "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d"),
+            "--collect-from", f"{tmp_path / 'first'},{tmp_path / 'second'}"]  # fmt: skip
+    b = Benchmark(cli.parse_args(args))
+    trained = []
+    b.train = lambda method, *rest: trained.append(method)
+    b.evaluate = lambda *rest: None
+    for method in ("act", "diffusion", "rnd_ai"):
+        b.run_one(method, "reach-v3", 3, 0)
+    assert trained == ["rnd_ai"]  # only the run that no folder holds
+    runs = {r["method"]: r for r in b.collect()}
+    assert runs["act"]["successes"] == 2 and runs["act"]["collected_from"].endswith("first/runs/act__reach-v3__n3__seed0.json")
+    assert runs["diffusion"]["successes"] == 1 and "/second/runs/" in runs["diffusion"]["collected_from"]
+    assert runs["rnd_ai"]["collected_from"] is None
+    assert not (tmp_path / "o" / "runs" / "act__reach-v3__n3__seed0.json").exists()  # nothing copied
+    res = {"benchmark": {"scale": "smoke", "protocol": "random", "tasks": ["reach-v3"], "demos": [3],
+                         "methods": ["act", "diffusion"], "seeds": [0], "complete": True, "written": "now",
+                         "host": {"platform": "p", "cpus": 2, "cuda": None, "torch": "t", "lerobot": "0.4.4"}},
+           "settings": {"matched": {"steps": 10, "batch_size": 4}, "record_seed": 0, "eval_seed": 1000,
+                        "eval_episodes_per_cell": 2, "episode_length": 50, "eval_placements": "seeded",
+                        "method_args": {}, "config_files": {}}, "runs": [runs["act"], runs["diffusion"]]}  # fmt: skip
+    md = reports.markdown_report(res)
+    assert "2 of the 2 runs were trained and evaluated by other benchmarks" in md and "first/runs/act__" in md
+
+
+def test_collect_from_refuses_a_folder_trained_otherwise(tmp_path):
+    _source_folder(tmp_path / "src", 3000, {"act": 2})
+    args = ["--scale", "smoke", "--steps", "10", "--batch-size", "4", "--eval-episodes", "2", "--episode-length",
+            "50", "--out", str(tmp_path / "o"), "--collect-from", str(tmp_path / "src")]  # fmt: skip
+    with pytest.raises(SystemExit, match="its runs used matched.steps=3000, this benchmark steps=10"):
+        Benchmark(cli.parse_args(args))
+    with pytest.raises(SystemExit, match="not a benchmark results folder"):
+        Benchmark(cli.parse_args([*args[:-1], str(tmp_path / "missing")]))
+
+
 def test_resume_refuses_another_training_recipe(tmp_path):
     """A results folder holds one recipe: resuming a --train-arg run without it (or with another) is refused
     before anything runs, so a shift-augmented run is never reported as the plain config."""

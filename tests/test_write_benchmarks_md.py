@@ -77,18 +77,20 @@ def test_ablation_rows_show_how_many_demos_they_trained_on():
     assert any(line.startswith("| old | 10 |") for line in lines)
 
 
-def test_a_folder_of_collected_runs_says_so_and_links_its_sources(tmp_path, monkeypatch):
+def test_a_folder_of_collected_runs_says_so_and_links_its_sources():
     import json
     from pathlib import Path
 
     import benchmarks.write_benchmarks_md as w
 
     res = json.loads((Path(w.RESULTS) / "cpu_3000_drawer" / "results.json").read_text())
-    monkeypatch.setattr(w, "RESULTS", tmp_path)
-    (tmp_path / "trained_here").mkdir()
-    (tmp_path / "collected").mkdir()
-    (tmp_path / "collected" / "SOURCES.md").write_text("# where these runs come from\n")
     trained = "\n".join(w.cpu_benchmark_section(res, "trained_here", "trained_here"))
-    collected = "\n".join(w.cpu_benchmark_section(res, "collected", "collected"))
-    assert "trains nothing" not in trained
-    assert "trains nothing" in collected and "benchmarks/results/collected/SOURCES.md" in collected
+    src = "benchmarks/results/{}/runs/{}__drawer-close-v3__n10__seed0.json"
+    runs = [{**r, "collected_from": src.format("cpu_3000_drawer" if r["method"] != "act" else "other", r["method"])}
+            for r in res["runs"]]  # fmt: skip
+    collected = "\n".join(w.cpu_benchmark_section({**res, "runs": runs}, "collected", "collected"))
+    partly = "\n".join(w.cpu_benchmark_section({**res, "runs": [runs[0], *res["runs"][1:]]}, "partly", "partly"))
+    assert "trains nothing" not in trained and "collect-from" not in trained
+    assert "This folder trains nothing: 3 runs are read from [`cpu_3000_drawer`]" in collected
+    assert "[`other`](../benchmarks/results/other/)" in collected
+    assert "This folder trains 2 of its runs: 1 run is read from" in partly

@@ -46,6 +46,11 @@ losing the steps since the last checkpoint) and exits with code 3; run the same 
 (same total --steps, so learning-rate schedules are unchanged), evaluation continues chunk by chunk, finished
 runs are skipped. Exit codes: 0 complete, 3 work remains, 1 some run failed (its log tail is in
 results.json).
+
+Collecting runs: ``--collect-from A,B`` reads a run this benchmark lacks from the first of the results folders
+A, B whose ``runs/`` holds it finished, without copying it (the folders' steps, batch, seeds, episode length
+and episodes per cell must match; results.md names each run's source). One table over tasks that were run
+as separate benchmarks is then a report of those runs, and redoing a source run updates it.
 """
 
 # The harness behind benchmarks/run_benchmark.py, one module per concept (docs/DESIGN.md lists them):

@@ -54,6 +54,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--train-arg", action="append",
                    help="extra lerobot-train argument for some methods: 'METHOD:--x=y', 'rnd:--x=y' (all R&D "
                         "variants) or 'all:--x=y'; repeatable")  # fmt: skip
+    p.add_argument("--collect-from", default="",
+                   help="comma-separated results folders of other benchmarks: a run this one has not done is taken "
+                        "from the first of them whose runs/ holds it finished (nothing is copied; the report names "
+                        "each run's source). Their steps, batch, seeds and episodes must match this benchmark's")  # fmt: skip
     p.add_argument("--resume", action="store_true", help="continue the benchmark in --work-dir")
     p.add_argument("--retry-failed", action="store_true", help="with --resume: run failed runs again")
     p.add_argument("--eval-only", action="store_true", help="evaluate existing checkpoints, train nothing")
@@ -88,6 +92,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if bad:
         p.error(f"unknown methods {bad}; choose from {list(METHODS)}")
     a.seeds = _csv(a.seed, int)
+    a.collect_from = _csv(a.collect_from)
     a.grid_dims = _csv(a.grid_dims, int) if a.grid_dims else None
     if a.grid_dims is not None and len(a.grid_dims) != 2:
         p.error("--grid-dims takes two coordinates")

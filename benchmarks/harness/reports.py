@@ -116,6 +116,12 @@ def markdown_report(res: dict) -> str:
         row = [_fmt_cell(cell_stats(runs, m, t, n)) for t, n in cells]
         row.append(_fmt_cell(cell_stats(runs, m, None, None)))
         lines.append(f"| {METHODS[m][1]} | " + " | ".join(row) + " |")
+    collected = [r for r in runs if r.get("collected_from")]
+    if collected:
+        lines += ["", f"{len(collected)} of the {len(runs)} runs were trained and evaluated by other benchmarks and "
+                  "collected here (`--collect-from`; each run's JSON holds its own commands):", ""]  # fmt: skip
+        lines += [f"- {METHODS[r['method']][1]} / {r['task']} / {r['demos']} demos / seed {r['seed']}: "
+                  f"`{r['collected_from']}`" for r in collected]  # fmt: skip
     lines += ["", "## Training and evaluation cost", "",
               "| method | parameters | training loop (sum over runs) | training wall incl. start-up | "
               "evaluation wall | runs done |", "| --- | --- | --- | --- | --- | --- |"]  # fmt: skip

@@ -45,6 +45,7 @@ class Benchmark:
         self.eval_sets: dict = {}
         self.more_work = False
         self.failed = False
+        self.collect_from = [self._source_folder(Path(f)) for f in a.collect_from]
 
     # ------------------------------------------------------------------ budget
     def remaining(self) -> float:
@@ -410,7 +411,44 @@ class Benchmark:
         st = _read_json(self.run_dir(method, task, n, seed) / "run.json")
         if st is None:
             st = _read_json(self.result_path(method, task, n, seed))
+        if st is None:
+            st = self.collected_state(method, task, n, seed)
         return st or {}
+
+    # the settings a collected run must share with this benchmark: results.json's settings key -> this run's value
+    _COLLECT_MATCH = {("matched", "steps"): "steps", ("matched", "batch_size"): "batch_size",
+                      ("record_seed",): "record_seed", ("eval_seed",): "eval_seed",
+                      ("episode_length",): "episode_length", ("eval_episodes_per_cell",): "eval_episodes"}  # fmt: skip
+
+    def _source_folder(self, folder: Path) -> Path:
+        """A --collect-from folder, checked against this benchmark's settings (SystemExit naming the mismatch)."""
+        if not folder.exists() and not folder.is_absolute():
+            folder = REPO_ROOT / folder  # a folder named from the repository root, e.g. benchmarks/results/cpu
+        folder = folder.resolve()
+        res = _read_json(folder / "results.json")
+        if res is None or not (folder / "runs").is_dir():
+            raise SystemExit(f"--collect-from {folder}: not a benchmark results folder (no results.json and runs/)")
+        if res["benchmark"]["protocol"] != self.a.protocol:
+            raise SystemExit(f"--collect-from {_rel(folder)}: protocol {res['benchmark']['protocol']}, this "
+                             f"benchmark's is {self.a.protocol}")  # fmt: skip
+        for keys, ours in self._COLLECT_MATCH.items():
+            theirs = res["settings"]
+            for k in keys:
+                theirs = theirs[k]
+            if theirs != getattr(self.a, ours):
+                raise SystemExit(f"--collect-from {_rel(folder)}: its runs used {'.'.join(keys)}={theirs}, this "
+                                 f"benchmark {ours.replace('_', '-')}={getattr(self.a, ours)}: pass --"
+                                 f"{ours.replace('_', '-')} {theirs} or leave that folder out")  # fmt: skip
+        return folder
+
+    def collected_state(self, method: str, task: str, n: int, seed: int) -> dict | None:
+        """The finished run from the first --collect-from folder that has it, marked with `collected_from`."""
+        name = self.result_path(method, task, n, seed).name
+        for folder in self.collect_from:
+            st = _read_json(folder / "runs" / name)
+            if st is not None and st.get("status") == "done":
+                return {**st, "collected_from": _rel(folder / "runs" / name)}
+        return None
 
     def run_one(self, method: str, task: str, n: int, seed: int) -> None:
         a = self.a
@@ -491,7 +529,8 @@ class Benchmark:
                             "eval_seeds": seeds if a.protocol == "random" else None,
                             "checkpoint": st.get("checkpoint"),
                             "loss_curve": st.get("loss_curve"),
-                            "run_dir": _rel(rdir),
+                            "run_dir": None if st.get("collected_from") else _rel(rdir),
+                            "collected_from": st.get("collected_from"),
                             "commands": st.get("commands", {}),
                             "error": st.get("error"),
                         })  # fmt: skip
@@ -534,6 +573,7 @@ class Benchmark:
                 "seeds": a.seeds, "device": a.device, "complete": complete, "harness_version": HARNESS_VERSION,
                 "started": self.started, "written": dt.datetime.now().isoformat(timespec="seconds"),
                 "command": shlex.join([sys.executable, *sys.argv]), "train_arg": a.train_arg or [],
+                "collect_from": [_rel(f) for f in self.collect_from],
                 "host": {"platform": platform.platform(), "python": platform.python_version(),
                          "cpus": os.cpu_count(), "torch": torch.__version__, "lerobot": lerobot.__version__,
                          "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None},
