@@ -45,14 +45,14 @@ SUITES = {
 }  # fmt: skip
 
 
-def make_env_and_expert(suite: str, task: str, size: int, flip_corner2: bool):
+def make_env_and_expert(suite: str, task: str, size: int, flip_corner2: bool, cameras: list[str] | None = None):
     if suite == "metaworld":
         from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
         from lerobot_rnd.sim.metaworld_experts import MetaWorldExpert
 
         env = RnDMetaWorldEnv(
             task, observation_height=size, observation_width=size,
-            flip_cameras=("corner2",) if flip_corner2 else (),
+            flip_cameras=("corner2",) if flip_corner2 else (), **({"camera_names": cameras} if cameras else {}),
         )  # fmt: skip
         return env, MetaWorldExpert(task)
     from lerobot_rnd.sim.panda_env import RnDPandaEnv
@@ -133,6 +133,7 @@ def main() -> None:
     p.add_argument("--size", type=int, default=128, help="image size")
     p.add_argument("--scale", type=int, default=3, help="upscaling of the images in the PNG")
     p.add_argument("--flip-corner2", action="store_true", help="metaworld: turn corner2 by 180 degrees (LeRobot)")
+    p.add_argument("--cameras", default=None, help="metaworld: comma-separated cameras (default: the env's)")
     p.add_argument("--out", default=None)
     a = p.parse_args()
     suite = SUITES[a.suite]
@@ -140,7 +141,8 @@ def main() -> None:
         if getattr(a, name) is None:
             setattr(a, name, suite[name])
 
-    env, expert = make_env_and_expert(a.suite, a.task, a.size, a.flip_corner2)
+    cameras = [c.strip() for c in a.cameras.split(",")] if a.cameras else None
+    env, expert = make_env_and_expert(a.suite, a.task, a.size, a.flip_corner2, cameras)
     obs, _ = env.reset(seed=a.seed)
     for _ in range(a.steps):
         obs, *_ = env.step(expert.act(env))
