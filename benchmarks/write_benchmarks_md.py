@@ -132,6 +132,8 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
         "",
         f"![success per task](images/{images}_success_per_task.png)",
         "",
+        *([f"![success against the number of demos](images/{images}_success_vs_demos.png)", ""]
+          if len(res["benchmark"]["demos"]) > 1 else []),
         "Training loss curves (each method's own loss; did it flatten?):",
         "",
         f"![loss curves](images/{images}_loss_curves.png)",
@@ -353,7 +355,7 @@ def main() -> int:
         if bench:
             parts += cpu_benchmark_section(bench, folder, folder) + [""]
             parts += generalisation_section(bench, folder)
-            for name in ("success_per_task", "loss_curves"):
+            for name in ("success_per_task", "loss_curves") + (("success_vs_demos",) if len(bench["benchmark"]["demos"]) > 1 else ()):
                 src = RESULTS / folder / f"{name}.png"
                 if src.exists():
                     shutil.copy(src, REPO / "docs" / "images" / f"{folder}_{name}.png")

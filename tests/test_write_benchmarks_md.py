@@ -94,3 +94,16 @@ def test_a_folder_of_collected_runs_says_so_and_links_its_sources():
     assert "This folder trains nothing: 3 runs are read from [`cpu_3000_drawer`]" in collected
     assert "[`other`](../benchmarks/results/other/)" in collected
     assert "This folder trains 2 of its runs: 1 run is read from" in partly
+
+
+def test_a_benchmark_with_two_demo_counts_shows_success_against_demos():
+    import json
+    from pathlib import Path
+
+    import benchmarks.write_benchmarks_md as w
+
+    res = json.loads((Path(w.RESULTS) / "cpu_3000_drawer" / "results.json").read_text())
+    one = "\n".join(w.cpu_benchmark_section(res, "x", "x"))
+    two = "\n".join(w.cpu_benchmark_section({**res, "benchmark": {**res["benchmark"], "demos": [10, 20]}}, "x", "x"))
+    assert "success_vs_demos" not in one
+    assert "![success against the number of demos](images/x_success_vs_demos.png)" in two
