@@ -191,6 +191,7 @@ def main(argv=None) -> int:
     for row in res["rows"]:
         row.setdefault("demos_expert_reach_target", expert)
         row.setdefault("demos_cameras", cameras)
+        row.setdefault("demos", n_demos)
     done = {r["name"] for r in res["rows"]}
     res["description"] = (
         f"`python benchmarks/run_ablation.py{'' if out_json == OUT_JSON else ' --out ' + a.out} ...` (each row's "

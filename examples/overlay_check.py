@@ -141,6 +141,8 @@ def main() -> None:
         if getattr(a, name) is None:
             setattr(a, name, suite[name])
 
+    if a.cameras and a.suite != "metaworld":
+        p.error("--cameras: only the metaworld suite takes a camera list (the panda env has fixed cameras)")
     cameras = [c.strip() for c in a.cameras.split(",")] if a.cameras else None
     env, expert = make_env_and_expert(a.suite, a.task, a.size, a.flip_corner2, cameras)
     obs, _ = env.reset(seed=a.seed)
