@@ -29,6 +29,7 @@ sys.path.insert(0, str(REPO))
 from benchmarks.harness.files import _read_json, _rel, _write_json  # noqa: E402
 from benchmarks.harness.grid_eval import grid_eval_argv  # noqa: E402
 from benchmarks.harness.reports import wilson_interval  # noqa: E402
+from lerobot_rnd.sim.record import recorded_env_args  # noqa: E402
 
 
 def training_placements(dataset_root: Path) -> list[list[float]]:
@@ -89,6 +90,7 @@ def main(argv=None) -> int:
     for task in a.tasks.split(","):
         root = data / f"mw_{task}_random_s{a.record_seed}_n{a.demos}"
         placements = training_placements(root)
+        env_args = recorded_env_args((_read_json(root / "meta" / "rnd_recording.json") or {}).get("settings") or {})
         demos[task] = replay_demos(root, task)
         runs = []
         for method in a.methods.split(","):
@@ -104,7 +106,7 @@ def main(argv=None) -> int:
                 print(f"skip {method} / {task}: no checkpoint at {_rel(ckpt)}")
                 continue
             pl_file = out_dir / "placements.json"
-            argv_eval = grid_eval_argv(ckpt, "cpu", task, 300, 10, 0, pl_file, out_dir)
+            argv_eval = grid_eval_argv(ckpt, "cpu", task, 300, 10, 0, pl_file, out_dir, env_args=env_args)
             if not (out_dir / "eval_info.json").exists():
                 _write_json(pl_file, placements)
                 print(f"evaluating {method} / {task} on its {len(placements)} training placements ...", flush=True)

@@ -39,7 +39,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from benchmarks.harness.reports import wilson_interval  # noqa: E402
 from lerobot_rnd.precision import cpu_bf16_is_fast  # noqa: E402
-from lerobot_rnd.sim.record import recorded_setting  # noqa: E402
+from lerobot_rnd.sim.record import recorded_env_args, recorded_setting  # noqa: E402
 
 OUT_JSON = REPO / "benchmarks" / "results" / "ablation_cpu.json"
 WORK = REPO / "outputs" / "ablation"
@@ -120,27 +120,6 @@ def trained_switches(ckpt: Path) -> dict:
         return {}
     policy = json.loads(cfg_path.read_text()).get("policy", {})
     return {k: policy[k] for k in RECORDED_SWITCHES if k in policy}
-
-
-def eval_env_args(rec_settings: dict) -> list[str]:
-    """The `--env.*` flags of lerobot-eval that rebuild the demos' observation (cameras, flips, image size, state).
-
-    A checkpoint expects the image keys and calibration of the cameras it was trained on, so a dataset recorded
-    with `--cameras corner2,topview` must be evaluated with those cameras, not the env's defaults.
-    """
-    args = [f"--env.camera_names=[{','.join(recorded_setting(rec_settings, 'cameras'))}]"]
-    flips = recorded_setting(rec_settings, "flip_cameras") or []
-    if flips:
-        args.append(f"--env.flip_cameras=[{','.join(flips)}]")
-    size = recorded_setting(rec_settings, "image_size")
-    if size is not None and int(size) != 128:
-        args += [f"--env.observation_height={size}", f"--env.observation_width={size}"]
-    if recorded_setting(rec_settings, "lerobot_corner2_pos") is False:
-        args.append("--env.use_lerobot_corner2_pos=false")
-    layout = recorded_setting(rec_settings, "state_layout")
-    if layout not in (None, "pos_grip_quat"):
-        args.append(f"--env.state_layout={layout}")
-    return args
 
 
 def reused_train_command(ckpt: Path) -> list[str] | None:
@@ -224,7 +203,7 @@ def main(argv=None) -> int:
         eval_dir = work / name / f"val_{a.val_seed}"
         eval_cmd = [str(bindir / "lerobot-eval"), f"--policy.path={ckpt}", "--env.type=rnd_mw", "--env.task=reach-v3",
                     f"--eval.n_episodes={a.episodes}", "--eval.batch_size=10", "--policy.device=cpu",
-                    f"--seed={a.val_seed}", f"--output_dir={eval_dir}", *eval_env_args(rec_settings), *sampler_args]  # fmt: skip
+                    f"--seed={a.val_seed}", f"--output_dir={eval_dir}", *recorded_env_args(rec_settings), *sampler_args]  # fmt: skip
         if not (eval_dir / "eval_info.json").exists():
             print(f"[{name}] evaluating ...", flush=True)
             sh(eval_cmd, work / name / "eval.log")

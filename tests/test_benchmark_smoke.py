@@ -315,3 +315,69 @@ def test_resume_refuses_another_training_recipe(tmp_path):
     b.record = lambda task: (_ for _ in ()).throw(AssertionError("nothing may run"))
     with pytest.raises(SystemExit, match="pass the same --train-arg"):
         b.run()
+
+
+def _fake_recording(root, n: int, **settings):
+    """A dataset folder as the harness reads it before training: LeRobot's episode count and the recorder's log."""
+    (root / "meta").mkdir(parents=True)
+    (root / "meta" / "info.json").write_text(json.dumps({"total_episodes": n, "total_frames": 10 * n}))
+    attempts = [{"episode_index": i, "placement_index": i, "success": True,
+                 "placement": [0.0, 0.6, 0.02, 0.01 * i, 0.85, 0.1]} for i in range(n)]  # fmt: skip
+    (root / "meta" / "rnd_recording.json").write_text(json.dumps({
+        "settings": {"suite": "metaworld", "task": "reach-v3", "cameras": ["corner2", "behindGripper"], **settings},
+        "attempts": attempts}))  # fmt: skip
+
+
+def test_demos_recorded_with_metaworlds_corner2_are_evaluated_with_it(tmp_path):
+    """Used to be evaluated with the env's default (LeRobot's) corner2 pose: the policies saw another view of the
+    scene than in their demos, and every method lost 6-10 of 50 reach episodes."""
+    _fake_recording(tmp_path / "data" / "mw_reach-v3_random_s0_n3", 3, lerobot_corner2_pos=False)
+    cmds = _dry_run(tmp_path, "--demos", "3", "--methods", "act")
+    assert not [c for c in cmds if "lerobot-rnd-record" in c]
+    ev = [c for c in cmds if "lerobot-eval" in c]
+    assert ev and all("--env.use_lerobot_corner2_pos=false" in c for c in ev)
+
+
+def test_demos_recorded_with_the_defaults_are_evaluated_with_the_defaults(tmp_path):
+    _fake_recording(tmp_path / "data" / "mw_reach-v3_random_s0_n3", 3, lerobot_corner2_pos=True)
+    ev = [c for c in _dry_run(tmp_path, "--demos", "3", "--methods", "act") if "lerobot-eval" in c]
+    assert ev and not [c for c in ev if "--env.use_lerobot_corner2_pos" in c or "--env.camera_names" in c]
+
+
+def test_nested_demo_sets_recorded_with_different_cameras_are_refused(tmp_path):
+    _fake_recording(tmp_path / "data" / "mw_reach-v3_random_s0_n3", 3, lerobot_corner2_pos=True)
+    _fake_recording(tmp_path / "data" / "mw_reach-v3_random_s0_n5", 5, lerobot_corner2_pos=False)
+    out = subprocess.run(
+        [sys.executable, str(SCRIPT), "--scale", "smoke", "--out", str(tmp_path / "out"), "--demos", "3,5",
+         "--methods", "act", "--work-dir", str(tmp_path / "work"), "--data-dir", str(tmp_path / "data"),
+         "--dry-run"], capture_output=True, text=True, timeout=300, cwd=REPO,
+    )  # fmt: skip
+    assert out.returncode != 0 and not [x for x in out.stdout.splitlines() if "lerobot-train" in x]
+    err = out.stdout + out.stderr
+    assert "recorded with different observations" in err and "use_lerobot_corner2_pos=false" in err
+
+
+def test_grid_eval_builds_the_env_of_the_demos():
+    """The grid evaluation's env, built from a recording's flags, shows corner2 from MetaWorld's own pose (read
+    from a MetaWorld model the plugin never touched), and from LeRobot's pose without them."""
+    import mujoco
+    import numpy as np
+
+    from benchmarks.harness.grid_eval import env_config
+    from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv, make_metaworld_task_env
+    from lerobot_rnd.sim.record import recorded_env_args
+
+    untouched = make_metaworld_task_env("reach-v3").model
+    metaworld_pos = untouched.cam_pos[mujoco.mj_name2id(untouched, mujoco.mjtObj.mjOBJ_CAMERA, "corner2")].copy()
+    for settings, want in (({"lerobot_corner2_pos": False}, metaworld_pos), ({}, np.array([0.75, 0.075, 0.7]))):
+        cfg = env_config("reach-v3", 20, recorded_env_args({"suite": "metaworld", **settings}))
+        env = RnDMetaWorldEnv("reach-v3", observation_height=32, observation_width=32,
+                              **{k: v for k, v in cfg.gym_kwargs.items() if k == "corner2_pos"})  # fmt: skip
+        try:
+            got = env.model.cam_pos[mujoco.mj_name2id(env.model, mujoco.mjtObj.mjOBJ_CAMERA, "corner2")]
+            np.testing.assert_allclose(got, want, atol=1e-9)
+        finally:
+            env.close()
+    assert not np.allclose(metaworld_pos, [0.75, 0.075, 0.7])
+    with pytest.raises(ValueError, match="--env"):
+        env_config("reach-v3", 20, ["camera_names=[corner2]"])

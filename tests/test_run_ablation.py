@@ -68,18 +68,18 @@ def test_the_evaluation_env_is_built_with_the_demos_cameras():
     the flags into the env config that lerobot-eval builds)."""
     import draccus
 
-    from benchmarks.run_ablation import eval_env_args
+    from lerobot_rnd.sim.record import recorded_env_args
     from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
 
     settings = {"cameras": ["corner2", "topview"], "flip_cameras": ["corner2"], "image_size": 96,
                 "lerobot_corner2_pos": False, "state_layout": "pos_grip_quat_mocap"}  # fmt: skip
-    args = [a.removeprefix("--env.") for a in eval_env_args(settings)]
+    args = [a.removeprefix("--env.") for a in recorded_env_args(settings)]
     cfg = draccus.parse(RnDMetaWorldEnvConfig, args=[f"--{a}" for a in args])
     assert cfg.camera_names == ["corner2", "topview"] and cfg.flip_cameras == ["corner2"]
     assert (cfg.observation_height, cfg.observation_width) == (96, 96)
     assert cfg.use_lerobot_corner2_pos is False and cfg.state_layout == "pos_grip_quat_mocap"
     default = draccus.parse(RnDMetaWorldEnvConfig, args=[
-        f"--{a.removeprefix('--env.')}" for a in eval_env_args({"cameras": ["corner2", "behindGripper"]})])
+        f"--{a.removeprefix('--env.')}" for a in recorded_env_args({"cameras": ["corner2", "behindGripper"]})])
     assert default.camera_names == ["corner2", "behindGripper"] and default.observation_height == 128
 
 

@@ -219,6 +219,9 @@ def test_recorder_writes_loadable_dataset(tmp_path):
     )  # fmt: skip
     summary = record_metaworld(settings, progress=False)
     assert summary["episodes"] == 2 and summary["failures"] == 0
+    # 64-px demos must be evaluated with 64-px images, and the summary says how
+    assert summary["eval_env_args"] == ["--env.observation_height=64", "--env.observation_width=64"]
+    assert "--env.observation_height=64" in summary["message"]
     # resume to 3 episodes through the CLI
     assert main(["--task", "reach-v3", "--episodes", "3", "--root", str(root), "--repo-id", "local/mw_reach",
                  "--placements", "fps", "--fps-pool", "64", "--image-size", "64", "--extra-steps", "3",

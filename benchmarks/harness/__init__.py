@@ -29,6 +29,9 @@ number of steps and checkpoint schedule, no pretrained weights (nothing is downl
 backbone is switched off), observation history 2 (ACT: 1, the only value LeRobot's ACT accepts) and an
 8-step action chunk executed open loop (DP: horizon 12 = 1 past + 8 executed + 3 for the U-Net's 4x
 downsampling, of which 8 are executed). Each method keeps its own optimiser preset (learning rate, schedule).
+Every policy is evaluated on the observations of its demos: a dataset recorded with other cameras, image size,
+corner2 position or state layout than the env's defaults is evaluated with the matching ``--env.*`` flags
+(``lerobot_rnd.sim.record.recorded_env_args``).
 
 Held-out placements: demos are recorded with placements drawn from ``numpy.random.default_rng(record_seed)``
 (--protocol random) or by furthest point sampling (spatial). ``lerobot-eval --seed=S --eval.n_episodes=N``

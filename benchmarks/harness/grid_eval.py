@@ -48,12 +48,30 @@ def grid_placements(env, task: str, low, high, grid: int, grid_dims: list[int] |
 
 
 def grid_eval_argv(ckpt: Path, device: str, task: str, episode_length: int, batch_size: int, seed: int,
-                   placements_file: Path, output_dir: Path) -> list[str]:  # fmt: skip
-    """The command that evaluates ``ckpt`` on the placements listed in ``placements_file`` (runs ``main``)."""
+                   placements_file: Path, output_dir: Path, env_args: list[str] = ()) -> list[str]:  # fmt: skip
+    """The command that evaluates ``ckpt`` on the placements listed in ``placements_file`` (runs ``main``).
+
+    ``env_args``: lerobot-eval's ``--env.*`` flags for the demos' observations (``recorded_env_args``)."""
     return [sys.executable, str(ENTRY_POINT), "_grid_eval",
             f"--policy-path={ckpt}", f"--device={device}", f"--task={task}",
             f"--episode-length={episode_length}", f"--batch-size={batch_size}",
-            f"--seed={seed}", f"--placements={placements_file}", f"--output-dir={output_dir}"]  # fmt: skip
+            f"--seed={seed}", f"--placements={placements_file}", f"--output-dir={output_dir}",
+            *(f"--env-arg={x}" for x in env_args)]  # fmt: skip
+
+
+def env_config(task: str, episode_length: int, env_args: list[str]):
+    """The rnd_mw env config that lerobot-eval builds from ``--env.task=... --env.episode_length=... *env_args``."""
+    import draccus
+
+    import lerobot_policy_rnd  # noqa: F401
+    from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
+
+    args = [f"--task={task}", f"--episode_length={episode_length}"]
+    for x in env_args:
+        if not x.startswith("--env."):
+            raise ValueError(f"--env-arg takes lerobot-eval's --env.* flags, got {x!r}")
+        args.append("--" + x.removeprefix("--env."))
+    return draccus.parse(RnDMetaWorldEnvConfig, args=args)
 
 
 def main(argv: list[str]) -> int:
@@ -68,6 +86,8 @@ def main(argv: list[str]) -> int:
     p.add_argument("--seed", type=int, default=1000)
     p.add_argument("--placements", required=True)
     p.add_argument("--output-dir", required=True)
+    p.add_argument("--env-arg", action="append", default=[], metavar="--env.FIELD=VALUE",
+                   help="an --env.* flag of lerobot-eval for the rnd_mw env (the demos' cameras, corner2 position...)")
     a = p.parse_args(argv)
     sys.path.insert(0, str(REPO_ROOT))
     import gymnasium as gym
@@ -78,12 +98,9 @@ def main(argv: list[str]) -> int:
     from lerobot.scripts.lerobot_eval import eval_policy
     from lerobot.utils.random_utils import set_seed
 
-    import lerobot_policy_rnd  # noqa: F401
-    from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
-
     placements = json.loads(Path(a.placements).read_text())
     set_seed(a.seed)
-    env_cfg = RnDMetaWorldEnvConfig(task=a.task, episode_length=a.episode_length)
+    env_cfg = env_config(a.task, a.episode_length, a.env_arg)
     pcfg = PreTrainedConfig.from_pretrained(a.policy_path)
     pcfg.pretrained_path = Path(a.policy_path)
     pcfg.device = a.device

@@ -91,9 +91,13 @@ class Benchmark:
                                dry_run=a.dry_run)  # fmt: skip
                 if r.rc != 0:
                     raise RuntimeError(f"recording {root} failed (rc {r.rc}):\n{r.tail}")
-            from lerobot_rnd.sim.record import recorded_setting
+            from lerobot_rnd.sim.record import recorded_env_args, recorded_setting
 
             rec = _read_json(root / "meta" / "rnd_recording.json", {}) or {}
+            env_args = recorded_env_args(rec.get("settings") or {})
+            if env_args:
+                print(f"{root.name} was recorded with other observations than the env's defaults; its policies "
+                      f"are evaluated with the same: {' '.join(env_args)}", flush=True)
             kept = [x for x in rec.get("attempts", []) if x.get("success")]
             kept.sort(key=lambda x: x["episode_index"])
             info = _read_json(root / "meta" / "info.json", {}) or {}
@@ -104,6 +108,7 @@ class Benchmark:
                 "placements": [x["placement"] for x in kept][:n],
                 "placement_indices": [x["placement_index"] for x in kept][:n],
                 "expert_failures": sum(1 for x in rec.get("attempts", []) if not x.get("success")),
+                "eval_env_args": env_args,
             }  # fmt: skip
             prev_root = root
         # check the nesting (smaller sets = first episodes of the larger ones)
@@ -111,6 +116,13 @@ class Benchmark:
         for small, big in zip(ns, ns[1:], strict=False):
             s, b = self.datasets[task][small], self.datasets[task][big]
             s["prefix_of_next"] = bool(b["placements"][: len(s["placements"])] == s["placements"])
+            if s["eval_env_args"] != b["eval_env_args"]:
+                raise ValueError(
+                    f"{task}: the {small}- and {big}-demo datasets were recorded with different observations "
+                    f"({s['eval_env_args'] or 'the defaults'} against {b['eval_env_args'] or 'the defaults'}), so "
+                    f"their policies would not see the same cameras; record {b['root']} again as an extension of "
+                    f"{s['root']} (remove it and rerun: the benchmark copies the smaller set and resumes it)"
+                )
 
     # ------------------------------------------------------------------ evaluation placements
     def eval_set(self, task: str) -> dict:
@@ -345,12 +357,13 @@ class Benchmark:
                     f"--policy.path={ckpt}", f"--policy.device={a.device}",
                     "--env.type=rnd_mw", f"--env.task={task}", f"--env.episode_length={a.episode_length}",
                     f"--eval.n_episodes={k}", f"--eval.batch_size={bs}", f"--seed={a.eval_seed + start}",
-                    f"--output_dir={edir}",
+                    f"--output_dir={edir}", *self.datasets[task][n]["eval_env_args"],
                 ]  # fmt: skip
             else:
                 pfile = rdir / "eval" / f"grid_{start}.json"
                 _write_json(pfile, es["placements"][start : start + k])
-                argv = grid_eval.grid_eval_argv(ckpt, a.device, task, a.episode_length, bs, a.eval_seed, pfile, edir)
+                argv = grid_eval.grid_eval_argv(ckpt, a.device, task, a.episode_length, bs, a.eval_seed, pfile, edir,
+                                                env_args=self.datasets[task][n]["eval_env_args"])  # fmt: skip
             st.setdefault("commands", {}).setdefault("eval", []).append(argv)
             deadline = None if self.deadline is None else self.deadline - a.exit_margin_s
             r = run_logged(argv, rdir / "eval.log", deadline=deadline, env=self.env(), dry_run=a.dry_run)

@@ -74,6 +74,47 @@ def recorded_setting(log_settings: dict, key: str):
     return log_settings.get(key, LEGACY_SETTINGS.get(key))
 
 
+def recorded_env_overrides(log_settings: dict) -> dict:
+    """The ``RnDMetaWorldEnvConfig`` fields (``--env.type=rnd_mw``) that differ from their defaults in a MetaWorld
+    recording: the cameras, flips, image size, corner2 position and state layout its observations were made with.
+
+    A policy must be evaluated on the observations it was trained on: demos recorded with
+    ``--metaworld-corner2-pos`` show corner2 from another pose than the env's default, and a policy trained on them
+    and evaluated with the defaults sees a view it never saw. Empty for a recording made with the defaults.
+    """
+    from lerobot_rnd.sim.metaworld_env import DEFAULT_CAMERAS
+
+    suite = recorded_setting(log_settings, "suite")
+    if suite != "metaworld":
+        raise ValueError(f"recorded_env_overrides reads MetaWorld recordings (--env.type=rnd_mw); this one is {suite!r}")
+    out = {}
+    cameras = recorded_setting(log_settings, "cameras")
+    if cameras and list(cameras) != list(DEFAULT_CAMERAS):
+        out["camera_names"] = list(cameras)
+    if recorded_setting(log_settings, "flip_cameras"):
+        out["flip_cameras"] = list(recorded_setting(log_settings, "flip_cameras"))
+    size = recorded_setting(log_settings, "image_size")
+    if size is not None and int(size) != 128:
+        out["observation_height"] = out["observation_width"] = int(size)
+    if recorded_setting(log_settings, "lerobot_corner2_pos") is False:
+        out["use_lerobot_corner2_pos"] = False
+    layout = recorded_setting(log_settings, "state_layout")
+    if layout not in (None, "pos_grip_quat"):
+        out["state_layout"] = layout
+    return out
+
+
+def recorded_env_args(log_settings: dict) -> list[str]:
+    """``recorded_env_overrides`` as lerobot-eval flags (``--env.camera_names=[corner2,topview]``, ...)."""
+
+    def flag(value) -> str:
+        if isinstance(value, list):
+            return "[" + ",".join(value) + "]"
+        return str(value).lower() if isinstance(value, bool) else str(value)
+
+    return [f"--env.{k}={flag(v)}" for k, v in recorded_env_overrides(log_settings).items()]
+
+
 # --------------------------------------------------------------------------------------------------
 # user errors
 # --------------------------------------------------------------------------------------------------
@@ -635,6 +676,14 @@ def _record(
     }
     if frames_written:
         summary["frames_per_second"] = round(frames_written / max(elapsed, 1e-9), 1)
+    if s.suite == "metaworld":
+        summary["eval_env_args"] = recorded_env_args(asdict(s))
+        if summary["eval_env_args"]:
+            summary["message"] = (
+                "these demos' observations differ from --env.type=rnd_mw's defaults: evaluate the policies trained "
+                "on them with the same observations, lerobot-eval --env.type=rnd_mw "
+                + " ".join(summary["eval_env_args"])
+            )
     return summary
 
 
