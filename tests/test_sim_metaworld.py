@@ -247,3 +247,49 @@ def test_recorder_writes_loadable_dataset(tmp_path):
     goal = np.asarray(rec["attempts"][0]["placement"][3:])
     # success: the gripper's centre (tcp, 4.5 cm straight below the hand body of the state) within 5 cm of the goal
     assert np.linalg.norm(st[:3] - (goal + [0.0, 0.0, 0.045])) < 0.06
+
+
+def test_the_evaluation_env_shows_what_the_demos_show(tmp_path):
+    """The frames lerobot-eval's env renders for a demo's placement and actions, built from the recording's
+    ``recorded_env_args``, are the demo's frames pixel for pixel, also for non-default cameras (MetaWorld's own
+    corner2 pose, 64-px images). Built with the env's defaults instead, corner2 shows another view."""
+    import io
+
+    import gymnasium as gym
+    import pyarrow.parquet as pq
+    from PIL import Image
+
+    import lerobot_policy_rnd  # noqa: F401  (registers the gym ids)
+    from benchmarks.harness.grid_eval import env_config
+    from lerobot_rnd.sim.record import RecordSettings, record_metaworld, recorded_env_args
+
+    root = tmp_path / "mw_reach"
+    s = RecordSettings(task="reach-v3", episodes=1, root=str(root), repo_id="local/mw_reach", image_size=64,
+                       extra_steps=0, lerobot_corner2_pos=False)  # fmt: skip
+    record_metaworld(s, progress=False)
+    rec = json.loads((root / "meta" / "rnd_recording.json").read_text())
+    placement = next(a["placement"] for a in rec["attempts"] if a["success"])
+    table = pq.read_table(sorted((root / "data").glob("*/*.parquet")))
+    actions = np.asarray(table.column("action").to_pylist(), dtype=np.float32)
+
+    def frame(cam, i):
+        return np.asarray(Image.open(io.BytesIO(table.column(f"observation.images.{cam}")[i].as_py()["bytes"])))
+
+    def corner2_error(env_args) -> float:
+        cfg = env_config("reach-v3", 300, env_args)
+        env = gym.make(cfg.gym_id, disable_env_checker=True,
+                       **{**cfg.gym_kwargs, "placement": "fixed", "placements": [placement]})  # fmt: skip
+        try:
+            obs, _ = env.reset(seed=0)
+            err = 0.0
+            for i in range(6):
+                assert obs["pixels"]["corner2"].shape == frame("corner2", i).shape
+                np.testing.assert_array_equal(obs["pixels"]["behindGripper"], frame("behindGripper", i))
+                err = max(err, float(np.abs(obs["pixels"]["corner2"].astype(float) - frame("corner2", i)).mean()))
+                obs, *_ = env.step(actions[i])
+            return err
+        finally:
+            env.close()
+
+    assert corner2_error(recorded_env_args(rec["settings"])) == 0.0
+    assert corner2_error(["--env.observation_height=64", "--env.observation_width=64"]) > 10.0
