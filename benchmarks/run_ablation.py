@@ -167,10 +167,12 @@ def main(argv=None) -> int:
     expert = recorded_setting(rec_settings, "expert_reach_target")
     cameras = list(recorded_setting(rec_settings, "cameras"))
     n_demos = json.loads((data / "meta" / "info.json").read_text())["total_episodes"]
+    extra_steps = recorded_setting(rec_settings, "extra_steps")
     for row in res["rows"]:
         row.setdefault("demos_expert_reach_target", expert)
         row.setdefault("demos_cameras", cameras)
         row.setdefault("demos", n_demos)
+        row.setdefault("demos_extra_steps", extra_steps)
     done = {r["name"] for r in res["rows"]}
     res["description"] = (
         f"`python benchmarks/run_ablation.py{'' if out_json == OUT_JSON else ' --out ' + a.out} ...` (each row's "
@@ -219,6 +221,7 @@ def main(argv=None) -> int:
             "per_episode_success": succ, "commands": {"train": train_cmd, "eval": eval_cmd},
             "trained_switches": trained_switches(ckpt), "bf16_autocast_on_this_cpu": cpu_bf16_is_fast(),
             "demos_expert_reach_target": expert, "demos_cameras": cameras, "demos": n_demos,
+            "demos_extra_steps": extra_steps,
             "ablation_command": shlex.join(["python", "benchmarks/run_ablation.py", *(sys.argv[1:] if argv is None else argv)]),
             "seconds": round(time.time() - t0, 1),
         })  # fmt: skip

@@ -199,9 +199,9 @@ def ablation_section(res: dict, name: str) -> list[str]:
         "",
         res.get("description", "") + f" JSON: [`{name}`](../benchmarks/results/{name}).",
         "",
-        "| row | demos | demos' expert | cameras | patch embedding | network precision | training switches | sampler switches | steps | "
+        "| row | demos | demos' expert | frames after success | cameras | patch embedding | network precision | training switches | sampler switches | steps | "
         "final loss | success | 95% interval | episodes |",
-        "| --- | ---: | --- | --- | --- | --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
+        "| --- | ---: | --- | ---: | --- | --- | --- | --- | --- | ---: | ---: | ---: | --- | ---: |",
     ]
     for row in res["rows"]:  # rows written before "demos" was recorded all used 10 demos
         lo, hi = row["ci95"]
@@ -213,6 +213,7 @@ def ablation_section(res: dict, name: str) -> list[str]:
         precision = "–" if bf16 is None else ("bf16 autocast" if bf16 else "float32")
         lines.append(
             f"| {row['name']} | {row.get('demos', 10)} | {row.get('demos_expert_reach_target', '–')} | "
+            f"{row.get('demos_extra_steps', 10)} | "  # rows without it: the recorder's default, 10, all along
             f"{' + '.join(row.get('demos_cameras') or ['corner2', 'behindGripper'])} | {embed} | {precision} | `{row['train']}` | "
             f"`{row['sampler']}` | {row['steps']} | "
             f"{row['final_loss'] if row.get('final_loss') is not None else '–'} | {100 * row['success_rate']:.0f}% | "

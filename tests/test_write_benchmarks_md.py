@@ -77,6 +77,20 @@ def test_ablation_rows_show_how_many_demos_they_trained_on():
     assert any(line.startswith("| old | 10 |") for line in lines)
 
 
+def test_ablation_rows_show_how_long_the_demos_go_on_after_success():
+    from benchmarks.write_benchmarks_md import ablation_section
+
+    row = {"name": "settle", "train": "(config defaults)", "sampler": "(config defaults)", "steps": 3000,
+           "final_loss": 0.03, "success_rate": 0.5, "ci95": [0.3, 0.7], "episodes": 20, "demos": 10,
+           "demos_expert_reach_target": "tcp", "demos_extra_steps": 40}  # fmt: skip
+    old = {k: v for k, v in row.items() if k != "demos_extra_steps"}  # recorded before: the default, 10
+    lines = ablation_section({"rows": [row, {**old, "name": "old"}]}, "x.json")
+    head = next(line for line in lines if line.startswith("| row |")).split(" | ")
+    col = head.index("frames after success")
+    assert next(line for line in lines if line.startswith("| settle |")).split(" | ")[col] == "40"
+    assert next(line for line in lines if line.startswith("| old |")).split(" | ")[col] == "10"
+
+
 def test_a_folder_of_collected_runs_says_so_and_links_its_sources():
     import json
     from pathlib import Path
