@@ -86,6 +86,18 @@ def plot(res: dict, png: Path) -> None:
     plt.close(fig)
 
 
+def dataset_env_args(train_config: dict) -> list[str]:
+    """lerobot-eval's ``--env.*`` flags for the observations of the run's training demos (their recording log),
+    so that the policy is evaluated on the cameras it was trained on; none for a dataset without a log."""
+    from lerobot_rnd.sim.record import RECORDING_FILE, recorded_env_args
+
+    root = (train_config.get("dataset") or {}).get("root")
+    log = Path(root) / RECORDING_FILE if root else None
+    if log is None or not log.exists():
+        return []
+    return recorded_env_args(json.loads(log.read_text()).get("settings") or {})
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--train-dir", required=True, help="a lerobot-train --output_dir (holds checkpoints/ and, "
@@ -119,6 +131,7 @@ def main(argv=None) -> int:
                 "give another --out")  # fmt: skip
     cfg = json.loads((train_dir / "checkpoints" / f"{available[-1]:06d}" / "pretrained_model" /
                       "train_config.json").read_text())  # fmt: skip
+    env_args = dataset_env_args(cfg)
     train_log = next(
         (f for f in (train_dir / "train.log", train_dir.parent / "train.log") if f.exists()), None
     )
@@ -152,7 +165,7 @@ def main(argv=None) -> int:
         eval_dir = WORK / out.name / f"step_{step:06d}"  # videos and logs stay out of the results folder
         cmd = [str(bindir / "lerobot-eval"), f"--policy.path={ckpt}", "--env.type=rnd_mw", f"--env.task={a.task}",
                f"--eval.n_episodes={a.episodes}", "--eval.batch_size=10", "--policy.device=cpu",
-               f"--seed={a.val_seed}", f"--output_dir={eval_dir}", *a.eval_arg]  # fmt: skip
+               f"--seed={a.val_seed}", f"--output_dir={eval_dir}", *env_args, *a.eval_arg]  # fmt: skip
         print(f"[step {step}] evaluating on seeds {a.val_seed}-{a.val_seed + a.episodes - 1} ...", flush=True)
         t0 = time.time()
         log = eval_dir.parent / f"step_{step:06d}.log"

@@ -106,6 +106,23 @@ def test_curve_evaluates_each_checkpoint_on_validation_seeds_and_resumes(tmp_pat
     ]
 
 
+def test_curve_evaluates_with_the_cameras_of_the_training_demos(tmp_path, monkeypatch):
+    """A run trained on demos recorded with MetaWorld's own corner2 pose is evaluated with it, not with the env's
+    default pose (the policy would see a view it never saw)."""
+    train = _train_dir(tmp_path)
+    demos = tmp_path / "demos"
+    (demos / "meta").mkdir(parents=True)
+    (demos / "meta" / "rnd_recording.json").write_text(json.dumps(
+        {"settings": {"suite": "metaworld", "cameras": ["corner2", "behindGripper"], "lerobot_corner2_pos": False}}))
+    for cfg in train.glob("checkpoints/*/pretrained_model/train_config.json"):
+        cfg.write_text(json.dumps({**json.loads(cfg.read_text()), "dataset": {"root": str(demos)}}))
+    calls = []
+    pattern = {1500: [True], 3000: [False]}
+    monkeypatch.setattr(vc.subprocess, "run", _fake_eval(calls, pattern))
+    assert vc.main(["--train-dir", str(train), "--out", str(tmp_path / "curve"), "--episodes", "1"]) == 0
+    assert len(calls) == 2 and all("--env.use_lerobot_corner2_pos=false" in c for c in calls)
+
+
 def test_curve_refuses_seeds_that_reach_the_evaluation_seeds(tmp_path):
     with pytest.raises(SystemExit):
         vc.main(["--train-dir", str(_train_dir(tmp_path)), "--out", str(tmp_path / "c"), "--val-seed", "990"])
