@@ -1,5 +1,5 @@
 #!/usr/bin/env python
-"""Write the CPU-results section of docs/BENCHMARKS.md (and the README's result lines) from the committed JSON.
+"""Write the CPU-results section of docs/BENCHMARKS.md from the committed JSON.
 
 Nothing in that section is typed by hand: it is rebuilt from
 
