@@ -109,9 +109,10 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
         run_json = (REPO / r["collected_from"] if r.get("collected_from") else
                     RESULTS / folder / "runs" / f"{r['method']}__{r['task']}__n{r['demos']}__seed{r.get('seed', 0)}.json")  # fmt: skip
         note = (_load(run_json) or {}).get("note")
-        if note:
-            notes.append(note)
-            r = {**r, "label": f"{r['label']} [{len(notes)}]"}
+        if note:  # runs that share a note share its footnote
+            if note not in notes:
+                notes.append(note)
+            r = {**r, "label": f"{r['label']} [{notes.index(note) + 1}]"}
         if not r["eval_episodes"]:
             curve = r.get("loss_curve") or []
             final = f"{curve[-1][1]:.3f}" if curve else "–"

@@ -121,3 +121,18 @@ def test_a_benchmark_with_two_demo_counts_shows_success_against_demos():
     two = "\n".join(w.cpu_benchmark_section({**res, "benchmark": {**res["benchmark"], "demos": [10, 20]}}, "x", "x"))
     assert "success_vs_demos" not in one
     assert "![success against the number of demos](images/x_success_vs_demos.png)" in two
+
+
+def test_runs_that_share_a_note_share_its_footnote():
+    """The camera-mismatch folder's three runs carry one note: it is printed once, and each run points at it."""
+    import json
+    from pathlib import Path
+
+    import benchmarks.write_benchmarks_md as w
+
+    res = json.loads((Path(w.RESULTS) / "cpu_3000_reach_n20_camera_mismatch" / "results.json").read_text())
+    lines = w.cpu_benchmark_section(res, "cpu_3000_reach_n20_camera_mismatch", "x")
+    footnotes = [line for line in lines if line.startswith("[")]
+    assert len(footnotes) == 1 and footnotes[0].startswith("[1] Evaluated with another corner2 pose")
+    rows = [line for line in lines if line.startswith("| ") and "reach-v3" in line]
+    assert len(rows) == 3 and all(" [1] |" in row for row in rows)
