@@ -368,7 +368,9 @@ def main() -> int:
     if hand:
         parts += hand_expert_section(hand, _load(RESULTS / "cpu_reach_hand_expert" / "train_placements.json")) + [""]
     for path in sorted(RESULTS.glob("ablation_cpu*.json")):
-        parts += ablation_section(_load(path), path.name) + [""]
+        ablation = _load(path)
+        if ablation and ablation.get("rows"):  # a file whose first row is still training has none yet
+            parts += ablation_section(ablation, path.name) + [""]
     for path in sorted(RESULTS.glob("validation_curve_*.json")):
         parts += validation_curve_section(_load(path), path.name) + [""]
         if path.with_suffix(".png").exists():
