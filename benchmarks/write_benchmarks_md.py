@@ -96,7 +96,7 @@ def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -
         f"({res['settings']['eval_episodes_per_cell']} episodes per cell, {res['settings']['episode_length']}-step "
         "episodes, `lerobot-eval --env.type=rnd_mw`). Success rate with its Wilson 95% interval. "
         + (f"JSON per run: [`benchmarks/results/{folder}/runs/`](../benchmarks/results/{folder}/runs/); "
-           if not all(r.get("collected_from") for r in runs) else "") +
+           if (RESULTS / folder / "runs").is_dir() else "") +
         "All runs: "
         f"[`benchmarks/results/{folder}/results.json`](../benchmarks/results/{folder}/results.json)." +
         (f" {_collected_sentence(runs, folder)}" if any(r.get("collected_from") for r in runs) else ""),
