@@ -7,6 +7,8 @@ triangle, nearest hit with t >= near. CUDA cases are skipped without a GPU.
 
 from __future__ import annotations
 
+import zlib
+
 import numpy as np
 import pytest
 import torch
@@ -123,7 +125,7 @@ def _compare(out: RenderOutput, ref_depth, K=K_NP, n=0, iou_min=0.99):
 @pytest.mark.parametrize("name", list(MESHES))
 def test_random_poses_match_ray_caster(name):
     mesh = MESHES[name]
-    rng = np.random.default_rng(abs(hash(name)) % 1000)
+    rng = np.random.default_rng(zlib.crc32(name.encode()) % 1000)  # hash() of a str changes per process
     for _ in range(3):
         T = _pose(Rotation.random(random_state=rng.integers(1 << 30)).as_rotvec(), [rng.normal() * 0.03, rng.normal() * 0.03, rng.uniform(0.25, 0.6)])
         out = _render_one(mesh, T)
