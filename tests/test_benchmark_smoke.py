@@ -186,6 +186,10 @@ def test_smoke_pipeline_with_resume(tmp_path):
         assert x["eval_seeds"] == [1000] and x["n_params"] > 0 and x["train_seconds"] > 0
         assert len(x["ci95"]) == 2
     assert [s["end_step"] for s in runs["rnd_ai"]["train_slices"]] == [2, 4]
+    for method in ("rnd_ai", "act"):  # each evaluated episode keeps MetaWorld's max reward (how close it came)
+        st = json.loads((tmp_path / "out" / "runs" / f"{method}__reach-v3__n3__seed0.json").read_text())
+        assert [len(c["max_rewards"]) for c in st["eval_chunks"].values()] == [1]
+        assert all(0.0 <= r <= 10.0 for c in st["eval_chunks"].values() for r in c["max_rewards"])
     assert "train_resume" in runs["rnd_ai"]["commands"]
     assert res["eval_sets"]["reach-v3"]["n_equal_to_a_train_placement"] == 0
     assert (tmp_path / "out" / "success_vs_demos.png").exists()

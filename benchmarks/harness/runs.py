@@ -377,7 +377,9 @@ class Benchmark:
             succ = [bool(x) for x in info["per_task"][0]["metrics"]["successes"]][:k]
             if len(succ) != k:
                 raise RuntimeError(f"eval_info.json holds {len(succ)} episodes, expected {k}")
-            chunks[key] = {"successes": succ, "wall_s": round(r.wall_s, 2),
+            rewards = info["per_task"][0]["metrics"].get("max_rewards") or []
+            chunks[key] = {"successes": succ, "max_rewards": [round(float(x), 6) for x in rewards[:k]],
+                           "wall_s": round(r.wall_s, 2),
                            "eval_s": info.get("overall", {}).get("eval_s"), "dir": _rel(edir)}  # fmt: skip
             _write_json(rdir / "run.json", st)
 

@@ -82,26 +82,23 @@ def recorded_env_overrides(log_settings: dict) -> dict:
     ``--metaworld-corner2-pos`` show corner2 from another pose than the env's default, and a policy trained on them
     and evaluated with the defaults sees a view it never saw. Empty for a recording made with the defaults.
     """
-    from lerobot_rnd.sim.metaworld_env import DEFAULT_CAMERAS
+    from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
 
     suite = recorded_setting(log_settings, "suite")
     if suite != "metaworld":
         raise ValueError(f"recorded_env_overrides reads MetaWorld recordings (--env.type=rnd_mw); this one is {suite!r}")
-    out = {}
-    cameras = recorded_setting(log_settings, "cameras")
-    if cameras and list(cameras) != list(DEFAULT_CAMERAS):
-        out["camera_names"] = list(cameras)
-    if recorded_setting(log_settings, "flip_cameras"):
-        out["flip_cameras"] = list(recorded_setting(log_settings, "flip_cameras"))
+    default = RnDMetaWorldEnvConfig()
     size = recorded_setting(log_settings, "image_size")
-    if size is not None and int(size) != 128:
-        out["observation_height"] = out["observation_width"] = int(size)
-    if recorded_setting(log_settings, "lerobot_corner2_pos") is False:
-        out["use_lerobot_corner2_pos"] = False
-    layout = recorded_setting(log_settings, "state_layout")
-    if layout not in (None, "pos_grip_quat"):
-        out["state_layout"] = layout
-    return out
+    recorded = {  # env config field -> the recording's value (None: not in the log, the env's default applies)
+        "camera_names": recorded_setting(log_settings, "cameras"),
+        "flip_cameras": recorded_setting(log_settings, "flip_cameras"),
+        "observation_height": None if size is None else int(size),
+        "observation_width": None if size is None else int(size),
+        "use_lerobot_corner2_pos": recorded_setting(log_settings, "lerobot_corner2_pos"),
+        "state_layout": recorded_setting(log_settings, "state_layout"),
+    }
+    return {k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in recorded.items()
+            if v is not None and (list(v) if isinstance(v, (list, tuple)) else v) != getattr(default, k)}  # fmt: skip
 
 
 def recorded_env_args(log_settings: dict) -> list[str]:
