@@ -12,7 +12,7 @@ from lerobot.optim.schedulers import DiffuserSchedulerConfig
 
 RND_VARIANTS = ("A", "I", "AI")
 POINT_UPDATES = ("x0", "interpolate", "ddim")
-PATCH_EMBEDS = ("linear", "conv")  # lerobot_rnd.network.patch_embedding
+PATCH_EMBEDS = ("linear", "conv", "conv3x3")  # lerobot_rnd.network.patch_embedding
 DENOISE_STEPS = ("ddim", "clean", "refine")
 
 #: Fields added after checkpoints were already saved, whose default is not what those checkpoints did, with
@@ -105,7 +105,9 @@ class RnDConfig(PreTrainedConfig):
         patch_size: ViT patch size in pixels.
         patch_embed: How RGB patches become tokens: "linear" (the ViT's and the paper's) or "conv" (4x4, 2x2 and
             (p/8)x(p/8) strided convolutions with GELU, still patch-local; needs patch_size divisible by 8), which
-            sees small features such as a goal marker at 4-px resolution inside a coarse patch.
+            sees small features such as a goal marker at 4-px resolution inside a coarse patch. "conv3x3":
+            three overlapping 3x3 stride-2 convolutions and a (p/8)x(p/8) one, run on each patch alone (a
+            convolutional stem, Xiao et al. 2021; also needs patch_size divisible by 8).
         gripper_patches: 0 tokenises every patch of every frame (the paper). K > 0 tokenises only the K patches
             of each future frame and view that the rendered gripper covers most (the rest of a future frame is
             the current image, already tokenised): far fewer tokens, static shapes. Image-space predictions
@@ -283,9 +285,10 @@ class RnDConfig(PreTrainedConfig):
                 f"`min_visible_points` must be >= 3 (a rigid transform needs 3 points). "
                 f"Got {self.min_visible_points}."
             )
-        if self.patch_embed not in PATCH_EMBEDS or (self.patch_embed == "conv" and self.patch_size % 8):
+        if self.patch_embed not in PATCH_EMBEDS or (self.patch_embed != "linear" and self.patch_size % 8):
             raise ValueError(
-                f"`patch_embed` must be one of {PATCH_EMBEDS}, and 'conv' needs a `patch_size` divisible by 8. "
+                f"`patch_embed` must be one of {PATCH_EMBEDS}, and the conv ones need a `patch_size` divisible "
+                "by 8. "
                 f"Got {self.patch_embed!r} with patch_size {self.patch_size}."
             )
         if self.point_update not in POINT_UPDATES:

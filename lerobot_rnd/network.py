@@ -95,10 +95,12 @@ def patch_embedding(kind: str, n_views: int, out_per_view: int, patch_size: int)
     in_ch = 3 * n_views
     if kind == "linear":
         return nn.Conv2d(in_ch, n_views * out_per_view, patch_size, patch_size, groups=n_views)
-    if kind != "conv" or patch_size % 8:
-        raise ValueError(f"patch_embed must be one of {PATCH_EMBEDS} ('conv' needs a patch_size divisible by 8), "
-                         f"got {kind!r} with patch_size {patch_size}")  # fmt: skip
+    if kind not in ("conv", "conv3x3") or patch_size % 8:
+        raise ValueError(f"patch_embed must be one of {PATCH_EMBEDS} ('conv' and 'conv3x3' need a patch_size "
+                         f"divisible by 8), got {kind!r} with patch_size {patch_size}")  # fmt: skip
     c1, c2 = max(out_per_view // 4, 8), max(out_per_view // 2, 8)
+    if kind == "conv3x3":
+        return PatchLocalConvStem(n_views, c1, c2, out_per_view, patch_size)
     return nn.Sequential(
         nn.Conv2d(in_ch, n_views * c1, 4, 4, groups=n_views),
         nn.GELU(),
@@ -106,6 +108,44 @@ def patch_embedding(kind: str, n_views: int, out_per_view: int, patch_size: int)
         nn.GELU(),
         nn.Conv2d(n_views * c2, n_views * out_per_view, patch_size // 8, patch_size // 8, groups=n_views),
     )
+
+
+class PatchLocalConvStem(nn.Module):
+    """Overlapping 3x3 convolutions, stride 2, three times (p -> p/8), then a (p/8)x(p/8) one to a token: the
+    convolutional stem of "Early Convolutions Help Transformers See Better" (Xiao et al., 2021), run on each
+    p x p patch on its own (zero padding at the patch border), so a token still depends only on its own
+    patch's pixels and selected gripper patches embed exactly as in the full image.
+
+    (N, C*3, h, w) -> (N, C*out_per_view, h/p, w/p), grouped over the C views.
+    """
+
+    def __init__(self, n_views: int, c1: int, c2: int, out_per_view: int, patch_size: int):
+        super().__init__()
+        self.patch_size = patch_size
+        g = n_views
+        self.layers = nn.Sequential(
+            nn.Conv2d(3 * g, g * c1, 3, 2, padding=1, groups=g),
+            nn.GELU(),
+            nn.Conv2d(g * c1, g * c2, 3, 2, padding=1, groups=g),
+            nn.GELU(),
+            nn.Conv2d(g * c2, g * c2, 3, 2, padding=1, groups=g),
+            nn.GELU(),
+            nn.Conv2d(g * c2, g * out_per_view, patch_size // 8, patch_size // 8, groups=g),
+        )
+        # He initialisation keeps the activations' scale through the four layers (PyTorch's default shrinks
+        # their variance about 3x per layer, which leaves the stem nearly linear at the start of training).
+        for layer in self.layers:
+            if isinstance(layer, nn.Conv2d):
+                nn.init.kaiming_normal_(layer.weight, nonlinearity="relu")
+                nn.init.zeros_(layer.bias)
+
+    def forward(self, images: Tensor) -> Tensor:
+        n, ch, h, w = images.shape
+        p = self.patch_size
+        gh, gw = h // p, w // p
+        patches = images.reshape(n, ch, gh, p, gw, p).permute(0, 2, 4, 1, 3, 5).reshape(n * gh * gw, ch, p, p)
+        tokens = self.layers(patches)  # (N*gh*gw, C*out, 1, 1)
+        return tokens.reshape(n, gh, gw, -1).permute(0, 3, 1, 2)
 
 
 class RnDDenoiser(nn.Module):

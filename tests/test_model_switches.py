@@ -1,5 +1,6 @@
 """Training-side switches of the R&D model: EMA weights, history overlay, per-camera image loss."""
 
+import pytest
 import torch
 
 from tests.helpers import make_policy as _make_policy, training_batch as _training_batch
@@ -93,26 +94,28 @@ def test_image_loss_is_a_per_camera_mean_summed_over_cameras(toy_dataset_root):
     assert abs(info["image_loss"] - 1.0) < 1e-5, info
 
 
-def test_conv_patch_embedding_switch(toy_dataset_root, tmp_path):
-    """`patch_embed="conv"` builds the strided-conv RGB embedding (the point map keeps the linear one), trains,
-    and comes back from a checkpoint; a patch size it cannot split is refused, naming the field."""
-    import pytest
-
+@pytest.mark.parametrize("kind", ["conv", "conv3x3"])
+def test_conv_patch_embedding_switch(toy_dataset_root, tmp_path, kind):
+    """`patch_embed="conv"` / `"conv3x3"` build a convolutional RGB embedding (the point map keeps the linear
+    one), train, and come back from a checkpoint; a patch size they cannot split is refused, naming the field."""
     from lerobot_rnd.configuration_rnd import RnDConfig
     from lerobot_rnd.modeling_rnd import RnDPolicy
 
-    policy, _ = _make_policy(toy_dataset_root, patch_embed="conv")
+    def first_conv(net):
+        return next(m for m in net.rgb_patch_embed.modules() if isinstance(m, torch.nn.Conv2d))
+
+    policy, _ = _make_policy(toy_dataset_root, patch_embed=kind)
     net = policy.model.network
-    assert isinstance(net.rgb_patch_embed, torch.nn.Sequential)
+    assert not isinstance(net.rgb_patch_embed, torch.nn.Conv2d)
     assert isinstance(net.point_patch_embed, torch.nn.Conv2d)
     loss, _ = policy.forward(_training_batch(toy_dataset_root, policy.config))
     loss.backward()
-    assert net.rgb_patch_embed[0].weight.grad.abs().sum() > 0
+    assert first_conv(net).weight.grad.abs().sum() > 0
     policy.save_pretrained(tmp_path / "ckpt")
     loaded = RnDPolicy.from_pretrained(tmp_path / "ckpt")
-    assert loaded.config.patch_embed == "conv"
-    torch.testing.assert_close(loaded.model.network.rgb_patch_embed[0].weight, net.rgb_patch_embed[0].weight)
+    assert loaded.config.patch_embed == kind
+    torch.testing.assert_close(first_conv(loaded.model.network).weight, first_conv(net).weight)
     with pytest.raises(ValueError, match="`patch_embed`"):
-        RnDConfig(patch_embed="conv", patch_size=12, image_size=(96, 96))
+        RnDConfig(patch_embed=kind, patch_size=12, image_size=(96, 96))
     with pytest.raises(ValueError, match="`patch_embed` must be one of"):
         RnDConfig(patch_embed="mlp")

@@ -123,26 +123,37 @@ def test_token_count_with_gripper_patches():
     assert _net(4).n_tokens == (2 * 2 * 24 + 3 * 2 * 4) + 5 + 2 + 3
 
 
-def test_conv_patch_embedding_is_patch_local_and_resolves_a_dot_inside_a_patch():
-    """'conv' is patch-local (a patch's token sees only its pixels) and, unlike any linear embedding, its token
-    for a red dot is not the sum of its tokens for the dot's halves: it is a nonlinear detector."""
+@pytest.mark.parametrize("kind", ["conv", "conv3x3"])
+def test_conv_patch_embedding_is_patch_local_and_resolves_a_dot_inside_a_patch(kind):
+    """The conv embeddings are patch-local (a patch's token sees only its pixels, even a pixel on the patch's
+    border, which an overlapping 3x3 kernel run over the whole image would leak into the next patch) and,
+    unlike any linear embedding, a token for a red dot is not the sum of its tokens for the dot's halves: it is
+    a nonlinear detector. Views do not mix."""
     from lerobot_rnd.network import patch_embedding
 
     torch.manual_seed(0)
-    embed = patch_embedding("conv", n_views=1, out_per_view=16, patch_size=8)
+    embed = patch_embedding(kind, n_views=1, out_per_view=16, patch_size=8)
     img = torch.zeros(1, 3, 16, 16)
     base = embed(img)
-    img2 = img.clone()
-    img2[0, 0, 2, 3] = 1.0  # top-left patch only
-    diff = (embed(img2) - base).abs()[0].sum(0)  # (2, 2) patch grid
-    assert diff[0, 0] > 0 and diff[0, 1] == 0 and diff[1, 0] == 0 and diff[1, 1] == 0
+    assert base.shape == (1, 16, 2, 2)
+    for row, col in [(2, 3), (2, 7), (7, 7)]:  # inside, on the right border, on the corner of patch (0, 0)
+        img2 = img.clone()
+        img2[0, 0, row, col] = 1.0
+        diff = (embed(img2) - base).abs()[0].sum(0)  # (2, 2) patch grid
+        assert diff[0, 0] > 0 and diff[0, 1] == 0 and diff[1, 0] == 0 and diff[1, 1] == 0, (row, col)
+    two_views = patch_embedding(kind, n_views=2, out_per_view=16, patch_size=8)
+    pair = torch.rand(1, 6, 16, 16)
+    other = pair.clone()
+    other[:, 3:] = torch.rand(1, 3, 16, 16)  # the second view only
+    d = (two_views(other) - two_views(pair)).abs()
+    assert d[:, :16].max() == 0 and d[:, 16:].max() > 0
     a, b, ab = img.clone(), img.clone(), img.clone()
     a[0, 0, 2, 3] = b[0, 0, 5, 6] = 1.0
     ab[0, 0, 2, 3] = ab[0, 0, 5, 6] = 1.0
     nonlinear = (embed(ab) - embed(a) - embed(b) + base).abs().max()
     assert nonlinear > 1e-4
     with pytest.raises(ValueError, match="divisible by 8"):
-        patch_embedding("conv", 1, 16, 12)
+        patch_embedding(kind, 1, 16, 12)
 
 
 @pytest.mark.parametrize("gripper_patches", [0, 3])
