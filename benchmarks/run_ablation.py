@@ -69,6 +69,10 @@ ROWS = {
     # re-planning every 4 steps instead of executing the whole 8-step chunk open loop (more closed-loop looks)
     "current_defaults": ([], None, []),
     "replan_every_4": ([], "current_defaults", ["--policy.n_action_steps=4"]),
+    "inference_steps_8": ([], "current_defaults", ["--policy.num_inference_steps=8"]),  # twice the denoising steps
+    # capacity on the perception side (overlapping 3x3 stride-2 conv stem) and in the transformer (width 384)
+    "conv3x3_stem": (["--policy.patch_embed=conv3x3"], None, []),
+    "width_384": (["--policy.dim_model=384"], None, []),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
