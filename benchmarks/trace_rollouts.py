@@ -1,0 +1,149 @@
+#!/usr/bin/env python
+"""Where does a reach policy's gripper go? Roll a checkpoint out and record the gripper's path against the goal.
+
+A failed reach episode only says "not within 5 cm". This script runs lerobot-eval's own rollout loop
+(`lerobot.scripts.lerobot_eval.rollout`, same env, processors and seeds as `lerobot-eval --seed=<first>`)
+and records, per episode, MetaWorld's gripper centre (`tcp_center`) at every step, the goal, the closest
+and final distances, how far the gripper still moved over the last 50 steps, and the nearest demo goal of
+the policy's training set. It tells apart a policy that heads for the goal and stops short, one that goes
+to where a demonstration went, and one that wanders.
+
+    python benchmarks/trace_rollouts.py --policy-path <run>/checkpoints/003000/pretrained_model \
+        --data outputs/benchmark/data/mw_reach-v3_random_s0_n10 --out benchmarks/results/trace_<name>.json
+
+Seeds default to the validation seeds 100-119; the benchmark's test seeds (1000-) are refused unless
+`--allow-test-seeds`, so a diagnosis cannot be tuned on them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+
+
+def demo_goals(data_root: Path) -> np.ndarray:
+    """(N, 3) goal positions of a MetaWorld recording's kept demos (the placement's last three numbers)."""
+    rec = json.loads((data_root / "meta" / "rnd_recording.json").read_text())
+    kept = [a for a in rec["attempts"] if a.get("success")]
+    return np.array([a["placement"][-3:] for a in kept], dtype=np.float64)
+
+
+def summarise(tcp: np.ndarray, goal: np.ndarray, goals_demo: np.ndarray, n_steps: int) -> dict:
+    """tcp (S, 3) gripper centre after reset and after every step, goal (3,) -> one episode's record (metres).
+
+    The entry after the episode's last step is dropped: the vector env resets an episode in the step that ends
+    it, so that entry is already the next episode's start.
+    """
+    tcp = tcp[:n_steps]
+    dist = np.linalg.norm(tcp - goal, axis=1)
+    nearest = int(np.argmin(np.linalg.norm(goals_demo - goal, axis=1)))
+    start_to_goal = goal - tcp[0]
+    travelled = tcp[-1] - tcp[0]
+    along = float(travelled @ start_to_goal / np.linalg.norm(start_to_goal) ** 2)  # 1 = reached the goal's depth
+    return {
+        "goal": goal.round(4).tolist(),
+        "start_distance": round(float(dist[0]), 4),
+        "min_distance": round(float(dist.min()), 4),
+        "final_distance": round(float(dist[-1]), 4),
+        "fraction_of_the_way": round(along, 3),
+        "moved_last_50_steps": round(float(np.linalg.norm(tcp[-1] - tcp[max(0, len(tcp) - 51)])), 4),
+        "nearest_demo": nearest,
+        "goal_to_nearest_demo_goal": round(float(np.linalg.norm(goals_demo[nearest] - goal)), 4),
+        "final_to_nearest_demo_goal": round(float(np.linalg.norm(goals_demo[nearest] - tcp[-1])), 4),
+        "final_tcp": tcp[-1].round(4).tolist(),
+        "tcp_every_10_steps": tcp[::10].round(4).tolist(),
+    }
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--policy-path", required=True, help="a pretrained_model directory")
+    p.add_argument("--data", required=True, help="the training dataset root (its demo goals and cameras)")
+    p.add_argument("--seed", type=int, default=100, help="first seed, as lerobot-eval --seed (default 100)")
+    p.add_argument("--episodes", type=int, default=20)
+    p.add_argument("--batch-size", type=int, default=10)
+    p.add_argument("--allow-test-seeds", action="store_true")
+    p.add_argument("--policy-arg", action="append", default=[], help="sampler override, e.g. num_inference_steps=8")
+    p.add_argument("--out", required=True)
+    a = p.parse_args(argv)
+    if a.seed + a.episodes > 1000 and not a.allow_test_seeds:
+        p.error(f"--seed {a.seed} with {a.episodes} episodes reaches the benchmark's test seeds (1000-); "
+                "diagnose on validation seeds, or pass --allow-test-seeds")  # fmt: skip
+
+    import torch
+    from lerobot.envs.factory import make_env, make_env_pre_post_processors
+    from lerobot.policies.factory import make_pre_post_processors
+    from lerobot.scripts.lerobot_eval import rollout
+
+    from lerobot_rnd.modeling_rnd import RnDPolicy
+    from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
+    from lerobot_rnd.sim.record import recorded_env_overrides
+
+    data = Path(a.data)
+    settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
+    env_cfg = RnDMetaWorldEnvConfig(task=settings.get("task", "reach-v3"), **recorded_env_overrides(settings))
+    goals_demo = demo_goals(data)
+    policy = RnDPolicy.from_pretrained(a.policy_path)
+    for kv in a.policy_arg:
+        key, _, value = kv.partition("=")
+        setattr(policy.config, key, type(getattr(policy.config, key))(value))
+    policy.eval()
+    pre, post = make_pre_post_processors(policy.config, pretrained_path=a.policy_path)
+    env_pre, env_post = make_env_pre_post_processors(env_cfg=env_cfg, policy_cfg=policy.config)
+
+    envs = make_env(env_cfg, n_envs=a.batch_size)
+    vec = next(iter(next(iter(envs.values())).values())) if isinstance(envs, dict) else envs
+    episodes = []
+    t0 = time.time()
+    for start in range(a.seed, a.seed + a.episodes, a.batch_size):
+        seeds = list(range(start, min(start + a.batch_size, a.seed + a.episodes)))
+        tcp_steps: list[np.ndarray] = []
+
+        goal_at_reset: list[np.ndarray] = []
+
+        def record(env):  # after reset, then after every step (an env that is done may reset again later)
+            if not goal_at_reset:
+                goal_at_reset.append(np.stack([e.unwrapped.raw_observation[-3:].copy() for e in env.envs]))
+            tcp_steps.append(np.stack([e.unwrapped.tcp_center.copy() for e in env.envs]))
+
+        with torch.no_grad():
+            out = rollout(vec, policy, env_pre, env_post, pre, post, seeds=seeds, render_callback=record)
+        goals = goal_at_reset[0]
+        tcp = np.stack(tcp_steps, axis=1)  # (B, S, 3)
+        done = out["done"].numpy()
+        success = out["success"].numpy().any(axis=1)
+        for i, s in enumerate(seeds):
+            n_steps = int(np.argmax(done[i])) + 1 if done[i].any() else done.shape[1]
+            ep = {"seed": s, "success": bool(success[i]), **summarise(tcp[i], goals[i], goals_demo, n_steps)}
+            episodes.append(ep)
+            print(f"seed {s}: {'success' if ep['success'] else 'failure'}  final {ep['final_distance'] * 100:5.1f} cm"
+                  f"  min {ep['min_distance'] * 100:5.1f} cm  way {ep['fraction_of_the_way']:.2f}"
+                  f"  moved(last 50) {ep['moved_last_50_steps'] * 100:4.1f} cm"
+                  f"  goal-demo {ep['goal_to_nearest_demo_goal'] * 100:4.1f} cm"
+                  f"  final-demo {ep['final_to_nearest_demo_goal'] * 100:4.1f} cm", flush=True)  # fmt: skip
+    vec.close()
+    result = {
+        "command": "python " + " ".join([Path(sys.argv[0]).as_posix(), *sys.argv[1:]]) if argv is None else None,
+        "policy_path": a.policy_path,
+        "data": a.data,
+        "demo_goals": goals_demo.round(4).tolist(),
+        "successes": sum(e["success"] for e in episodes),
+        "episodes": episodes,
+        "seconds": round(time.time() - t0, 1),
+    }
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(result, indent=1))
+    print(f"{result['successes']}/{len(episodes)}; wrote {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
