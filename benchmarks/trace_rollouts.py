@@ -6,7 +6,9 @@ A failed reach episode only says "not within 5 cm". This script runs lerobot-eva
 and records, per episode, MetaWorld's gripper centre (`tcp_center`) at every step, the goal, the closest
 and final distances, how far the gripper still moved over the last 50 steps, and the nearest demo goal of
 the policy's training set. It tells apart a policy that heads for the goal and stops short, one that goes
-to where a demonstration went, and one that wanders.
+to where a demonstration went, and one that wanders. `goal_response` sums it up: per axis, how far the
+gripper has moved towards the goal at step 30 (slope over the episodes, 1 = all the way), next to the same
+number for the demonstrations. Any LeRobot policy type loads (R&D, ACT, Diffusion Policy).
 
     python benchmarks/trace_rollouts.py --policy-path <run>/checkpoints/003000/pretrained_model \
         --data outputs/benchmark/data/mw_reach-v3_random_s0_n10 --out benchmarks/results/trace_<name>.json
@@ -34,6 +36,34 @@ def demo_goals(data_root: Path) -> np.ndarray:
     rec = json.loads((data_root / "meta" / "rnd_recording.json").read_text())
     kept = [a for a in rec["attempts"] if a.get("success")]
     return np.array([a["placement"][-3:] for a in kept], dtype=np.float64)
+
+
+def goal_response(starts: np.ndarray, later: np.ndarray, goals: np.ndarray) -> dict:
+    """How strongly the gripper follows the goal: per axis, the least-squares slope (and correlation) of the
+    displacement `later - starts` against the goal's offset `goals - starts`, over episodes; all (N, 3).
+    1 = moved all the way to the goal on that axis, 0 = moved the same whatever the goal (a policy that
+    ignores the goal and replays an average demonstration)."""
+    out = {}
+    for k, axis in enumerate("xyz"):
+        offset, moved = goals[:, k] - starts[:, k], later[:, k] - starts[:, k]
+        slope = float(np.polyfit(offset, moved, 1)[0])
+        out[axis] = {"slope": round(slope, 3), "correlation": round(float(np.corrcoef(offset, moved)[0, 1]), 3)}
+    return out
+
+
+def demo_goal_response(data_root: Path, goals_demo: np.ndarray, step: int) -> dict:
+    """`goal_response` of the demonstrations themselves at frame `step` (the hand position, state[:3]; the
+    gripper centre moves with it)."""
+    import pandas as pd
+
+    frames = pd.concat([pd.read_parquet(f) for f in sorted((data_root / "data").glob("*/*.parquet"))])
+    starts, later = [], []
+    for _, ep in sorted(frames.groupby("episode_index"), key=lambda kv: kv[0]):
+        ep = ep.sort_values("frame_index")
+        states = np.stack(ep["observation.state"].to_numpy())
+        starts.append(states[0, :3])
+        later.append(states[min(step, len(states) - 1), :3])
+    return goal_response(np.array(starts), np.array(later), goals_demo)
 
 
 def summarise(tcp: np.ndarray, goal: np.ndarray, goals_demo: np.ndarray, n_steps: int) -> dict:
@@ -72,6 +102,8 @@ def main(argv=None) -> int:
     p.add_argument("--batch-size", type=int, default=10)
     p.add_argument("--allow-test-seeds", action="store_true")
     p.add_argument("--policy-arg", action="append", default=[], help="sampler override, e.g. num_inference_steps=8")
+    p.add_argument("--response-step", type=int, default=30, help="step (a multiple of 10) at which the gripper's "
+                   "displacement is compared with the goal's offset, for the policy and its demos (default 30)")
     p.add_argument("--out", required=True)
     a = p.parse_args(argv)
     if a.seed + a.episodes > 1000 and not a.allow_test_seeds:
@@ -80,7 +112,7 @@ def main(argv=None) -> int:
 
     import torch
     from lerobot.envs.factory import make_env, make_env_pre_post_processors
-    from lerobot.policies.factory import make_pre_post_processors
+    from lerobot.policies.factory import get_policy_class, make_pre_post_processors
     from lerobot.scripts.lerobot_eval import rollout
 
     from lerobot_rnd.modeling_rnd import RnDPolicy
@@ -91,7 +123,8 @@ def main(argv=None) -> int:
     settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
     env_cfg = RnDMetaWorldEnvConfig(task=settings.get("task", "reach-v3"), **recorded_env_overrides(settings))
     goals_demo = demo_goals(data)
-    policy = RnDPolicy.from_pretrained(a.policy_path)
+    policy_type = json.loads((Path(a.policy_path) / "config.json").read_text())["type"]
+    policy = (RnDPolicy if policy_type == "rnd" else get_policy_class(policy_type)).from_pretrained(a.policy_path)
     for kv in a.policy_arg:
         key, _, value = kv.partition("=")
         setattr(policy.config, key, type(getattr(policy.config, key))(value))
@@ -130,17 +163,28 @@ def main(argv=None) -> int:
                   f"  goal-demo {ep['goal_to_nearest_demo_goal'] * 100:4.1f} cm"
                   f"  final-demo {ep['final_to_nearest_demo_goal'] * 100:4.1f} cm", flush=True)  # fmt: skip
     vec.close()
+    step = a.response_step
+    starts = np.array([e["tcp_every_10_steps"][0] for e in episodes])
+    later = np.array([e["tcp_every_10_steps"][min(step // 10, len(e["tcp_every_10_steps"]) - 1)] for e in episodes])
+    goals = np.array([e["goal"] for e in episodes])
     result = {
         "command": "python " + " ".join([Path(sys.argv[0]).as_posix(), *sys.argv[1:]]) if argv is None else None,
         "policy_path": a.policy_path,
         "data": a.data,
         "demo_goals": goals_demo.round(4).tolist(),
+        "policy_type": policy_type,
         "successes": sum(e["success"] for e in episodes),
+        "goal_response_step": step,
+        "goal_response": goal_response(starts, later, goals),
+        "demo_goal_response": demo_goal_response(data, goals_demo, step),
         "episodes": episodes,
         "seconds": round(time.time() - t0, 1),
     }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(result, indent=1))
+    for name in ("goal_response", "demo_goal_response"):
+        print(name, f"at step {step}:", "  ".join(f"{k} {v['slope']:.2f} (r {v['correlation']:.2f})"
+                                                 for k, v in result[name].items()))  # fmt: skip
     print(f"{result['successes']}/{len(episodes)}; wrote {a.out}")
     return 0
 

@@ -52,3 +52,15 @@ def test_the_benchmark_test_seeds_are_refused(capsys):
     with pytest.raises(SystemExit):
         tr.main(["--policy-path", "x", "--data", "y", "--out", "z", "--seed", "990", "--episodes", "20"])
     assert "test seeds" in capsys.readouterr().err
+
+
+def test_goal_response_is_the_slope_of_the_displacement_against_the_goal_offset():
+    rng = np.random.default_rng(0)
+    starts = rng.normal(size=(12, 3))
+    goals = starts + rng.normal(size=(12, 3))
+    halfway = starts + 0.5 * (goals - starts)
+    r = tr.goal_response(starts, halfway, goals)
+    assert all(r[k]["slope"] == pytest.approx(0.5) and r[k]["correlation"] == pytest.approx(1.0) for k in "xyz")
+    same_move = starts + np.array([0.0, 0.3, 0.0])  # ignores the goal
+    r = tr.goal_response(starts, same_move, goals)
+    assert r["x"]["slope"] == pytest.approx(0.0, abs=1e-9) and r["y"]["slope"] == pytest.approx(0.0, abs=1e-9)
