@@ -114,6 +114,7 @@ def main(argv=None) -> int:
     from lerobot.envs.factory import make_env, make_env_pre_post_processors
     from lerobot.policies.factory import get_policy_class, make_pre_post_processors
     from lerobot.scripts.lerobot_eval import rollout
+    from lerobot.utils.random_utils import set_seed
 
     from lerobot_rnd.modeling_rnd import RnDPolicy
     from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
@@ -123,6 +124,10 @@ def main(argv=None) -> int:
     settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
     env_cfg = RnDMetaWorldEnvConfig(task=settings.get("task", "reach-v3"), **recorded_env_overrides(settings))
     goals_demo = demo_goals(data)
+    # as lerobot-eval: seed the global RNGs, then build the env, then the policy (a diffusion policy's sampling
+    # noise comes from torch's global generator, so the same seed draws the same noise)
+    set_seed(a.seed)
+    envs = make_env(env_cfg, n_envs=a.batch_size)
     policy_type = json.loads((Path(a.policy_path) / "config.json").read_text())["type"]
     policy = (RnDPolicy if policy_type == "rnd" else get_policy_class(policy_type)).from_pretrained(a.policy_path)
     for kv in a.policy_arg:
@@ -132,7 +137,6 @@ def main(argv=None) -> int:
     pre, post = make_pre_post_processors(policy.config, pretrained_path=a.policy_path)
     env_pre, env_post = make_env_pre_post_processors(env_cfg=env_cfg, policy_cfg=policy.config)
 
-    envs = make_env(env_cfg, n_envs=a.batch_size)
     vec = next(iter(next(iter(envs.values())).values())) if isinstance(envs, dict) else envs
     episodes = []
     t0 = time.time()
@@ -173,6 +177,7 @@ def main(argv=None) -> int:
         "data": a.data,
         "demo_goals": goals_demo.round(4).tolist(),
         "policy_type": policy_type,
+        "global_seed": a.seed,
         "successes": sum(e["success"] for e in episodes),
         "goal_response_step": step,
         "goal_response": goal_response(starts, later, goals),
