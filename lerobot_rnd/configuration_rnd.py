@@ -13,6 +13,7 @@ from lerobot.optim.schedulers import DiffuserSchedulerConfig
 RND_VARIANTS = ("A", "I", "AI")
 POINT_UPDATES = ("x0", "interpolate", "ddim")
 PATCH_EMBEDS = ("linear", "conv", "conv3x3")  # lerobot_rnd.network.patch_embedding
+OBS_ENCODERS = ("patch", "resnet18")  # lerobot_rnd.network.ResNetObservationEncoder
 DENOISE_STEPS = ("ddim", "clean", "refine")
 
 #: Fields added after checkpoints were already saved, whose default is not what those checkpoints did, with
@@ -108,6 +109,11 @@ class RnDConfig(PreTrainedConfig):
             sees small features such as a goal marker at 4-px resolution inside a coarse patch. "conv3x3":
             three overlapping 3x3 stride-2 convolutions and a (p/8)x(p/8) one, run on each patch alone (a
             convolutional stem, Xiao et al. 2021; also needs patch_size divisible by 8).
+        obs_encoder: How the observed (past/current) RGB frames become tokens: "patch" (`patch_embed`, the
+            paper's) or "resnet18" (a ResNet-18 trunk from scratch with GroupNorm, as Diffusion Policy uses without
+            pretrained weights, shared by the cameras; its stride-32 feature map gives one token per 32-px patch,
+            so it needs patch_size=32; the rendered future patches keep `patch_embed`). The paper reports that
+            ResNet encoders did worse at its scale; this switch measures it with few demos on a CPU.
         gripper_patches: 0 tokenises every patch of every frame (the paper). K > 0 tokenises only the K patches
             of each future frame and view that the rendered gripper covers most (the rest of a future frame is
             the current image, already tokenised): far fewer tokens, static shapes. Image-space predictions
@@ -204,6 +210,7 @@ class RnDConfig(PreTrainedConfig):
     mlp_ratio: float = 4.0
     patch_size: int = 16
     patch_embed: str = "linear"
+    obs_encoder: str = "patch"
     gripper_patches: int = 0
     embedding_init_std: float = 1.0
     dropout: float = 0.0
@@ -290,6 +297,11 @@ class RnDConfig(PreTrainedConfig):
                 f"`patch_embed` must be one of {PATCH_EMBEDS}, and the conv ones need a `patch_size` divisible "
                 "by 8. "
                 f"Got {self.patch_embed!r} with patch_size {self.patch_size}."
+            )
+        if self.obs_encoder not in OBS_ENCODERS or (self.obs_encoder == "resnet18" and self.patch_size != 32):
+            raise ValueError(
+                f"`obs_encoder` must be one of {OBS_ENCODERS}, and 'resnet18' needs `patch_size=32` (one token per "
+                f"cell of its stride-32 feature map). Got {self.obs_encoder!r} with patch_size {self.patch_size}."
             )
         if self.point_update not in POINT_UPDATES:
             raise ValueError(f"`point_update` must be one of {POINT_UPDATES}. Got {self.point_update!r}.")

@@ -338,6 +338,7 @@ class RnDModel(nn.Module):
             gripper_patches=config.gripper_patches,
             embedding_init_std=config.embedding_init_std,
             patch_embed=config.patch_embed,
+            obs_encoder=config.obs_encoder,
         )
         self.ema_network = None
         if config.use_ema:

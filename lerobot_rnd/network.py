@@ -148,6 +148,23 @@ class PatchLocalConvStem(nn.Module):
         return tokens.reshape(n, gh, gw, -1).permute(0, 3, 1, 2)
 
 
+class ResNetObservationEncoder(nn.Module):
+    """ResNet-18 trunk (random init, GroupNorm instead of BatchNorm as Diffusion Policy uses without pretrained
+    weights), shared by the views, then a 1x1 convolution to the token width: (N, 3, h, w) in [-1, 1] ->
+    (N, out_dim, h/32, w/32). Unlike the patch embeddings its tokens see beyond their own 32-px cell."""
+
+    def __init__(self, out_dim: int):
+        super().__init__()
+        import torchvision
+
+        trunk = torchvision.models.resnet18(weights=None, norm_layer=lambda c: nn.GroupNorm(c // 16, c))
+        self.trunk = nn.Sequential(*list(trunk.children())[:-2])  # drop the pooling and the classifier
+        self.proj = nn.Conv2d(512, out_dim, 1)
+
+    def forward(self, images: Tensor) -> Tensor:
+        return self.proj(self.trunk(images))
+
+
 class RnDDenoiser(nn.Module):
     """ViT that maps rendered observations to image-space displacements, action updates and gripper logits.
 
@@ -190,6 +207,7 @@ class RnDDenoiser(nn.Module):
         gripper_patches: int = 0,
         embedding_init_std: float = 0.02,
         patch_embed: str = "linear",
+        obs_encoder: str = "patch",
     ):
         super().__init__()
         self.n_views = n_views
@@ -212,6 +230,13 @@ class RnDDenoiser(nn.Module):
         # (smooth, rendered) always takes the linear one.
         in_ch = 3 * n_views
         self.rgb_patch_embed = patch_embedding(patch_embed, n_views, d // 2, patch_size)
+        self.obs_rgb_encoder = None
+        if obs_encoder == "resnet18":
+            if patch_size != 32:
+                raise ValueError(f"obs_encoder='resnet18' needs patch_size=32 (its stride), got {patch_size}")
+            self.obs_rgb_encoder = ResNetObservationEncoder(d // 2)
+        elif obs_encoder != "patch":
+            raise ValueError(f"obs_encoder must be 'patch' or 'resnet18', got {obs_encoder!r}")
         self.point_patch_embed = (
             nn.Conv2d(in_ch, n_views * d // 2, patch_size, patch_size, groups=n_views)
             if use_point_map_input
@@ -336,7 +361,16 @@ class RnDDenoiser(nn.Module):
     def embed_observation(self, obs_rgb: Tensor, obs_points: Tensor) -> Tensor:
         """Past/current frames (B, H, C, 3, h, w) each -> their patch tokens (B, H, C, P, D), with the patch
         position embedding (frame and view embeddings are added in `forward`)."""
-        return self._embed_frames(obs_rgb, obs_points, sparse=False) + self.patch_pos_embed[None, None, None]
+        if self.obs_rgb_encoder is None:
+            return self._embed_frames(obs_rgb, obs_points, sparse=False) + self.patch_pos_embed[None, None, None]
+        b, f, c, _, h, w = obs_rgb.shape
+        rgb = self.obs_rgb_encoder((obs_rgb * 2.0 - 1.0).reshape(b * f * c, 3, h, w))  # (B*H*C, D/2, gh, gw)
+        rgb_tokens = rgb.flatten(2).transpose(1, 2).reshape(b, f, c, self.n_patches, -1)
+        if self.point_patch_embed is None:
+            point_tokens = torch.zeros_like(rgb_tokens)
+        else:
+            point_tokens = self._patchify(obs_points, self.point_patch_embed)
+        return torch.cat([rgb_tokens, point_tokens], dim=-1) + self.patch_pos_embed[None, None, None]
 
     def _embed_frames(self, rgb: Tensor, points: Tensor, sparse: bool) -> Tensor:
         """Images and point maps (B, F', C, 3, h, w), or selected pixels (B, F', C, 3, K*p*p) when `sparse`

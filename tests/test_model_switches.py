@@ -119,3 +119,20 @@ def test_conv_patch_embedding_switch(toy_dataset_root, tmp_path, kind):
         RnDConfig(patch_embed=kind, patch_size=12, image_size=(96, 96))
     with pytest.raises(ValueError, match="`patch_embed` must be one of"):
         RnDConfig(patch_embed="mlp")
+
+
+def test_resnet_observation_encoder_switch_trains_and_reloads(toy_dataset_root, tmp_path):
+    """`obs_encoder="resnet18"` trains end to end (its first convolution gets a gradient) and comes back from a
+    checkpoint with the same weights."""
+    from lerobot_rnd.modeling_rnd import RnDPolicy
+
+    policy, _ = _make_policy(toy_dataset_root, obs_encoder="resnet18", patch_size=32, image_size=(64, 64))
+    net = policy.model.network
+    loss, _ = policy.forward(_training_batch(toy_dataset_root, policy.config))
+    loss.backward()
+    first = net.obs_rgb_encoder.trunk[0].weight
+    assert first.grad is not None and first.grad.abs().sum() > 0
+    policy.save_pretrained(tmp_path / "ckpt")
+    loaded = RnDPolicy.from_pretrained(tmp_path / "ckpt")
+    assert loaded.config.obs_encoder == "resnet18"
+    torch.testing.assert_close(loaded.model.network.obs_rgb_encoder.trunk[0].weight, first)

@@ -178,3 +178,33 @@ def test_precomputed_observation_tokens_give_the_same_outputs(gripper_patches):
     for r, o in zip(ref, got):
         torch.testing.assert_close(o, r, atol=1e-6, rtol=0)
     assert (flipped[1] - ref[1]).abs().max() > 1e-4  # the observation frames matter: the comparison can fail
+
+
+def test_resnet_observation_encoder_tokens_see_past_their_cell_and_leave_future_patches_to_the_patch_embed():
+    """obs_encoder='resnet18': one token per 32-px cell of the observed frames, each seeing beyond its own cell
+    (a pixel in cell (0, 0) changes the token of cell (0, 1), which no patch embedding does); the selected
+    future patches still go through the patch-local embedding, so they do not depend on the rest of the image;
+    and the views keep their own tokens."""
+    net = _net(3, image_size=(64, 96), patch_size=32, obs_encoder="resnet18").eval()
+    assert net.obs_rgb_encoder is not None and net.n_patches == 6
+    rgb = torch.rand(1, 2, 2, 3, 64, 96)
+    pm = torch.zeros_like(rgb)
+    with torch.no_grad():
+        base = net.embed_observation(rgb, pm)
+        assert base.shape == (1, 2, 2, 6, 32)
+        moved = rgb.clone()
+        moved[0, 1, 0, :, 5:9, 5:9] = 1.0 - moved[0, 1, 0, :, 5:9, 5:9]  # frame 1, view 0, cell (0, 0)
+        diff = (net.embed_observation(moved, pm) - base).abs()[..., :16].amax(-1)  # RGB half of each token
+    assert diff[0, 1, 0, 0] > 0 and diff[0, 1, 0, 1] > 0  # its own cell and the next one
+    assert diff[0, 0].max() == 0 and diff[0, 1, 1].max() == 0  # other frames and the other view: untouched
+    with pytest.raises(ValueError, match="patch_size=32"):
+        _net(0, patch_size=8, obs_encoder="resnet18")
+
+
+def test_resnet_observation_encoder_config_names_the_field():
+    from lerobot_rnd.configuration_rnd import RnDConfig
+
+    with pytest.raises(ValueError, match="`obs_encoder`.*patch_size=32"):
+        RnDConfig(obs_encoder="resnet18", patch_size=16)
+    with pytest.raises(ValueError, match="`obs_encoder` must be one of"):
+        RnDConfig(obs_encoder="vgg")
