@@ -73,6 +73,8 @@ ROWS = {
     # capacity on the perception side (overlapping 3x3 stride-2 conv stem) and in the transformer (width 384)
     "conv3x3_stem": (["--policy.patch_embed=conv3x3"], None, []),
     "width_384": (["--policy.dim_model=384"], None, []),
+    # observed frames through a ResNet-18 trunk (from scratch, GroupNorm) instead of patch-local embeddings
+    "resnet18_obs": (["--policy.obs_encoder=resnet18"], None, []),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
