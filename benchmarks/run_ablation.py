@@ -74,7 +74,7 @@ ROWS = {
     "conv3x3_stem": (["--policy.patch_embed=conv3x3"], None, []),
     "width_384": (["--policy.dim_model=384"], None, []),
     # observed frames through a ResNet-18 trunk (from scratch, GroupNorm) instead of patch-local embeddings
-    "resnet18_obs": (["--policy.obs_encoder=resnet18"], None, []),
+    "resnet18_obs": (["--policy.obs_encoder=resnet18", "--policy.patch_size=32"], None, []),  # 32: its stride
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
