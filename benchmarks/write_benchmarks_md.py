@@ -288,15 +288,15 @@ def quickstart_section(results: list[tuple[str, dict]]) -> list[str]:
     return lines
 
 
-def inference_section(res: dict) -> list[str]:
+def inference_section(res: dict, name: str = "inference_cpu_tier.json") -> list[str]:
     rows = {f"{r['method']} ({r['config']}; {r['params'] / 1e6:.1f}M parameters)": r for r in res["results"]}
     act = next((r for r in res["results"] if r["method"] == "ACT"), None)
+    cpu = res.get("machine", {}).get("cpu_capability")
     lines = [
-        "### One action chunk at inference (CPU)",
+        f"### One action chunk at inference (CPU{f', {cpu}' if cpu else ''})",
         "",
         f"`{res['command']}` (batch {res['args']['batch']}, median of {res['args']['repeats']} interleaved calls "
-        "after warm-up; JSON: [`benchmarks/results/inference_cpu_tier.json`]"
-        "(../benchmarks/results/inference_cpu_tier.json)).",
+        f"after warm-up; JSON: [`benchmarks/results/{name}`](../benchmarks/results/{name})).",
         "",
         "| method (config) | median per chunk | ratio to ACT |",
         "| --- | ---: | ---: |",
@@ -349,9 +349,10 @@ def main() -> int:
     quick = [(p.name, _load(p)) for p in sorted(RESULTS.glob("quickstart*_cpu.json"))]
     if quick:
         parts += quickstart_section(quick) + [""]
-    inference = _load(RESULTS / "inference_cpu_tier.json")
-    if inference:
-        parts += inference_section(inference) + [""]
+    for path in sorted(RESULTS.glob("inference_cpu_tier*.json")):  # one per machine kind (AVX2, AVX-512)
+        inference = _load(path)
+        if inference:
+            parts += inference_section(inference, path.name) + [""]
     for folder in sorted(p.parent.name for p in RESULTS.glob("cpu*/results.json")):
         bench = _load(RESULTS / folder / "results.json")
         if bench:
