@@ -37,7 +37,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-from benchmarks.harness.reports import wilson_interval  # noqa: E402
+from benchmarks.harness.reports import median_update_s_from_log, wilson_interval  # noqa: E402
 from lerobot_rnd.precision import cpu_bf16_is_fast  # noqa: E402
 from lerobot_rnd.sim.record import recorded_env_args, recorded_setting  # noqa: E402
 
@@ -218,10 +218,13 @@ def main(argv=None) -> int:
         info = json.loads((eval_dir / "eval_info.json").read_text())
         succ = [bool(s) for s in info["per_task"][0]["metrics"]["successes"]]
         lo, hi = wilson_interval(sum(succ), len(succ))
+        train_log = reused.parents[3] / "train.log" if reused else run / "train.log"
         res["rows"].append({
             "name": name, "train": " ".join(train_args) or "(config defaults)",
             "sampler": " ".join(sampler_args) or "(config defaults)", "steps": a.steps,
-            "final_loss": final_loss(reused.parents[3] / "train.log" if reused else run / "train.log"),
+            "final_loss": final_loss(train_log),
+            "update_s_median_logged": median_update_s_from_log(train_log.read_text(errors="replace"))
+            if train_log.exists() else None,
             "checkpoint": str(ckpt.relative_to(REPO)) if ckpt.is_relative_to(REPO) else str(ckpt), "successes": sum(succ), "episodes": len(succ),
             "success_rate": sum(succ) / len(succ), "ci95": [lo, hi], "val_seeds": [a.val_seed, a.val_seed + len(succ) - 1],
             "per_episode_success": succ,

@@ -29,13 +29,12 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+from benchmarks.eval_train_placements import training_placements  # noqa: E402
 
 
 def demo_goals(data_root: Path) -> np.ndarray:
-    """(N, 3) goal positions of a MetaWorld recording's kept demos (the placement's last three numbers)."""
-    rec = json.loads((data_root / "meta" / "rnd_recording.json").read_text())
-    kept = [a for a in rec["attempts"] if a.get("success")]
-    return np.array([a["placement"][-3:] for a in kept], dtype=np.float64)
+    """(N, 3) goal positions of a MetaWorld recording's demos in episode order (the placement's last three numbers)."""
+    return np.array(training_placements(data_root), dtype=np.float64)[:, -3:]
 
 
 def goal_response(starts: np.ndarray, later: np.ndarray, goals: np.ndarray) -> dict:
@@ -101,7 +100,6 @@ def main(argv=None) -> int:
     p.add_argument("--episodes", type=int, default=20)
     p.add_argument("--batch-size", type=int, default=10)
     p.add_argument("--allow-test-seeds", action="store_true")
-    p.add_argument("--policy-arg", action="append", default=[], help="sampler override, e.g. num_inference_steps=8")
     p.add_argument("--response-step", type=int, default=30, help="step (a multiple of 10) at which the gripper's "
                    "displacement is compared with the goal's offset, for the policy and its demos (default 30)")
     p.add_argument("--out", required=True)
@@ -130,9 +128,6 @@ def main(argv=None) -> int:
     envs = make_env(env_cfg, n_envs=a.batch_size)
     policy_type = json.loads((Path(a.policy_path) / "config.json").read_text())["type"]
     policy = (RnDPolicy if policy_type == "rnd" else get_policy_class(policy_type)).from_pretrained(a.policy_path)
-    for kv in a.policy_arg:
-        key, _, value = kv.partition("=")
-        setattr(policy.config, key, type(getattr(policy.config, key))(value))
     policy.eval()
     pre, post = make_pre_post_processors(policy.config, pretrained_path=a.policy_path)
     env_pre, env_post = make_env_pre_post_processors(env_cfg=env_cfg, policy_cfg=policy.config)

@@ -37,15 +37,15 @@ def test_a_path_that_stops_short():
     assert ep["fraction_of_the_way"] == pytest.approx(0.5) and ep["final_distance"] == pytest.approx(0.3)
 
 
-def test_demo_goals_are_the_kept_attempts_last_three_numbers(tmp_path):
+def test_demo_goals_are_the_kept_attempts_last_three_numbers_in_episode_order(tmp_path):
     (tmp_path / "meta").mkdir()
-    attempts = [
-        {"placement": [0, 0, 0, 0.1, 0.8, 0.2], "success": True},
+    attempts = [  # logged in attempt order; episode 1 was recorded first
+        {"placement": [0, 0, 0, 0.1, 0.8, 0.2], "success": True, "episode_index": 1},
         {"placement": [0, 0, 0, 0.5, 0.5, 0.5], "success": False},
-        {"placement": [0, 0, 0, -0.1, 0.9, 0.05], "success": True},
+        {"placement": [0, 0, 0, -0.1, 0.9, 0.05], "success": True, "episode_index": 0},
     ]
     (tmp_path / "meta" / "rnd_recording.json").write_text(json.dumps({"settings": {}, "attempts": attempts}))
-    assert tr.demo_goals(tmp_path).tolist() == [[0.1, 0.8, 0.2], [-0.1, 0.9, 0.05]]
+    assert tr.demo_goals(tmp_path).tolist() == [[-0.1, 0.9, 0.05], [0.1, 0.8, 0.2]]
 
 
 def test_the_benchmark_test_seeds_are_refused(capsys):

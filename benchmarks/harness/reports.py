@@ -25,6 +25,12 @@ _LOG_LINE = re.compile(r"^\$ |step:([0-9.]+)([KMBT]?) .*?loss:([0-9.]+)", re.MUL
 _SUFFIX = {"": 1, "K": 10**3, "M": 10**6, "B": 10**9, "T": 10**12}
 
 
+def median_update_s_from_log(text: str) -> float | None:
+    """Median of lerobot-train's logged `updt_s` (seconds per optimiser step, data loading excluded)."""
+    m = [float(x) for x in re.findall(r"updt_s:([0-9.]+)", text)]
+    return sorted(m)[len(m) // 2] if m else None
+
+
 def loss_curve_from_log(text: str, log_freq: int) -> list[tuple[int, float]]:
     """[(step, loss)] from a lerobot-train log (the harness's train.log may hold several invocations).
 
