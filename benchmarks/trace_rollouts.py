@@ -14,7 +14,10 @@ number for the demonstrations. Any LeRobot policy type loads (R&D, ACT, Diffusio
         --data outputs/benchmark/data/mw_reach-v3_random_s0_n10 --out benchmarks/results/trace_<name>.json
 
 Seeds default to the validation seeds 100-119; the benchmark's test seeds (1000-) are refused unless
-`--allow-test-seeds`, so a diagnosis cannot be tuned on them.
+`--allow-test-seeds`, so a diagnosis cannot be tuned on them. `--policy-arg FIELD=VALUE` changes a sampler
+setting of the checkpoint's config (e.g. `num_inference_steps=1`). Every trace also splits each final miss into
+the part along the recording's static camera's ray through the goal (depth as that camera sees it) and the part
+across it (`static_camera_ray_error`); `--reanalyse` adds that split to a trace written before it existed.
 """
 
 from __future__ import annotations
@@ -65,6 +68,84 @@ def demo_goal_response(data_root: Path, goals_demo: np.ndarray, step: int) -> di
     return goal_response(np.array(starts), np.array(later), goals_demo)
 
 
+def static_camera_ray_error(final: np.ndarray, goal: np.ndarray, cam_pos: np.ndarray) -> dict:
+    """Split a final position's miss (metres, world frame) into the part along the static camera's ray through
+    the goal (depth as that camera sees it; + = beyond the goal, away from the camera) and the part across it
+    (what that camera shows as a wrong image position). final, goal, cam_pos: (3,)."""
+    ray = (goal - cam_pos) / np.linalg.norm(goal - cam_pos)
+    miss = final - goal
+    along = float(miss @ ray)
+    return {"along_ray": round(along, 4), "across_ray": round(float(np.linalg.norm(miss - along * ray)), 4)}
+
+
+def static_camera_position(data_root: Path) -> tuple[str, np.ndarray] | None:
+    """(camera key, (3,) position in the world) of the recording's first static camera (one with `T_world_cam`
+    in `meta/rnd_embodiment.json`), or None if it has none."""
+    path = data_root / "meta" / "rnd_embodiment.json"
+    if not path.exists():
+        return None
+    for key, cam in json.loads(path.read_text())["cameras"].items():
+        if "T_world_cam" in cam:
+            return key, np.asarray(cam["T_world_cam"], dtype=np.float64)[:3, 3]
+    return None
+
+
+def ray_error_summary(episodes: list[dict], cam_pos: np.ndarray) -> dict:
+    """Medians (metres) of `static_camera_ray_error` over the failed and the successful episodes."""
+    out = {}
+    for name, keep in (("failures", False), ("successes", True)):
+        errs = [static_camera_ray_error(np.array(e["final_tcp"]), np.array(e["goal"]), cam_pos)
+                for e in episodes if e["success"] == keep]  # fmt: skip
+        out[name] = {"episodes": len(errs)} | ({
+            "median_along_ray": round(float(np.median([r["along_ray"] for r in errs])), 4),
+            "median_abs_along_ray": round(float(np.median([abs(r["along_ray"]) for r in errs])), 4),
+            "median_across_ray": round(float(np.median([r["across_ray"] for r in errs])), 4),
+        } if errs else {})  # fmt: skip
+    return out
+
+
+def parse_policy_args(config, pairs: list[str]):
+    """A copy of a loaded policy config with `KEY=VALUE` overrides, each cast to the type of the field's current
+    value (bool accepts true/false only) and checked by the config's own validation (`dataclasses.replace`
+    runs `__post_init__`). Unknown fields and unparsable or invalid values raise ValueError naming them."""
+    import dataclasses
+
+    overrides = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep or not hasattr(config, key):
+            raise ValueError(f"--policy-arg {pair!r}: expected FIELD=VALUE with a field of {type(config).__name__}")
+        current = getattr(config, key)
+        if isinstance(current, bool):
+            if text.lower() not in ("true", "false"):
+                raise ValueError(f"--policy-arg {pair!r}: {key} is a bool; write true or false")
+            value = text.lower() == "true"
+        elif isinstance(current, (int, float, str)):
+            try:
+                value = type(current)(text)
+            except ValueError:
+                raise ValueError(f"--policy-arg {pair!r}: {key} needs a {type(current).__name__}") from None
+        else:
+            raise ValueError(f"--policy-arg {pair!r}: {key} ({type(current).__name__}) cannot be set here")
+        overrides[key] = value
+    return dataclasses.replace(config, **overrides) if overrides else config
+
+
+def reanalyse(path: Path, data_root: Path) -> dict:
+    """Add the static-camera ray split to a trace JSON written before it existed (the episodes' final positions
+    and goals are already there); returns the updated result."""
+    result = json.loads(path.read_text())
+    cam = static_camera_position(data_root)
+    if cam is not None:
+        for ep in result["episodes"]:
+            ep["static_camera_ray_error"] = static_camera_ray_error(np.array(ep["final_tcp"]), np.array(ep["goal"]),
+                                                                    cam[1])  # fmt: skip
+        result["static_camera"] = cam[0]
+        result["static_camera_ray_error"] = ray_error_summary(result["episodes"], cam[1])
+    path.write_text(json.dumps(result, indent=1))
+    return result
+
+
 def summarise(tcp: np.ndarray, goal: np.ndarray, goals_demo: np.ndarray, n_steps: int) -> dict:
     """tcp (S, 3) gripper centre after reset and after every step, goal (3,) -> one episode's record (metres).
 
@@ -94,7 +175,7 @@ def summarise(tcp: np.ndarray, goal: np.ndarray, goals_demo: np.ndarray, n_steps
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--policy-path", required=True, help="a pretrained_model directory")
+    p.add_argument("--policy-path", help="a pretrained_model directory (required unless --reanalyse)")
     p.add_argument("--data", required=True, help="the training dataset root (its demo goals and cameras)")
     p.add_argument("--seed", type=int, default=100, help="first seed, as lerobot-eval --seed (default 100)")
     p.add_argument("--episodes", type=int, default=20)
@@ -102,8 +183,18 @@ def main(argv=None) -> int:
     p.add_argument("--allow-test-seeds", action="store_true")
     p.add_argument("--response-step", type=int, default=30, help="step (a multiple of 10) at which the gripper's "
                    "displacement is compared with the goal's offset, for the policy and its demos (default 30)")
+    p.add_argument("--policy-arg", action="append", default=[], metavar="FIELD=VALUE",
+                   help="override a sampler setting of the loaded config, e.g. num_inference_steps=1 (repeatable)")
+    p.add_argument("--reanalyse", action="store_true", help="only add the static-camera ray split to the existing "
+                   "--out JSON (no rollouts)")
     p.add_argument("--out", required=True)
     a = p.parse_args(argv)
+    if a.reanalyse:
+        r = reanalyse(Path(a.out), Path(a.data))
+        print(json.dumps(r.get("static_camera_ray_error"), indent=1))
+        return 0
+    if a.policy_path is None:
+        p.error("--policy-path is required (a pretrained_model directory)")
     if a.seed + a.episodes > 1000 and not a.allow_test_seeds:
         p.error(f"--seed {a.seed} with {a.episodes} episodes reaches the benchmark's test seeds (1000-); "
                 "diagnose on validation seeds, or pass --allow-test-seeds")  # fmt: skip
@@ -126,8 +217,16 @@ def main(argv=None) -> int:
     # noise comes from torch's global generator, so the same seed draws the same noise)
     set_seed(a.seed)
     envs = make_env(env_cfg, n_envs=a.batch_size)
+    from lerobot.configs.policies import PreTrainedConfig
+
     policy_type = json.loads((Path(a.policy_path) / "config.json").read_text())["type"]
-    policy = (RnDPolicy if policy_type == "rnd" else get_policy_class(policy_type)).from_pretrained(a.policy_path)
+    policy_cfg = PreTrainedConfig.from_pretrained(a.policy_path)
+    try:
+        policy_cfg = parse_policy_args(policy_cfg, a.policy_arg)
+    except ValueError as e:
+        p.error(str(e))
+    policy_cls = RnDPolicy if policy_type == "rnd" else get_policy_class(policy_type)
+    policy = policy_cls.from_pretrained(a.policy_path, config=policy_cfg)
     policy.eval()
     pre, post = make_pre_post_processors(policy.config, pretrained_path=a.policy_path)
     env_pre, env_post = make_env_pre_post_processors(env_cfg=env_cfg, policy_cfg=policy.config)
@@ -175,6 +274,7 @@ def main(argv=None) -> int:
         "global_seed": a.seed,
         "successes": sum(e["success"] for e in episodes),
         "goal_response_step": step,
+        "policy_args": a.policy_arg,
         "goal_response": goal_response(starts, later, goals),
         "demo_goal_response": demo_goal_response(data, goals_demo, step),
         "episodes": episodes,
@@ -182,6 +282,7 @@ def main(argv=None) -> int:
     }
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(result, indent=1))
+    result = reanalyse(Path(a.out), data)
     for name in ("goal_response", "demo_goal_response"):
         print(name, f"at step {step}:", "  ".join(f"{k} {v['slope']:.2f} (r {v['correlation']:.2f})"
                                                  for k, v in result[name].items()))  # fmt: skip

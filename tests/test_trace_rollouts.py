@@ -64,3 +64,47 @@ def test_goal_response_is_the_slope_of_the_displacement_against_the_goal_offset(
     same_move = starts + np.array([0.0, 0.3, 0.0])  # ignores the goal
     r = tr.goal_response(starts, same_move, goals)
     assert r["x"]["slope"] == pytest.approx(0.0, abs=1e-9) and r["y"]["slope"] == pytest.approx(0.0, abs=1e-9)
+
+
+def test_static_camera_ray_error_splits_a_miss_into_depth_and_image_position():
+    cam = np.array([0.0, 0.0, 1.0])
+    goal = np.array([0.0, 0.0, 0.0])  # the camera looks straight down at it
+    r = tr.static_camera_ray_error(np.array([0.03, -0.04, -0.02]), goal, cam)
+    assert r["along_ray"] == pytest.approx(0.02)  # 2 cm below the goal = beyond it, seen from above
+    assert r["across_ray"] == pytest.approx(0.05)  # 3-4-5 in the image plane
+    tilted = np.array([1.0, 0.0, 1.0])  # 45 degrees: a miss of (-1, 0, -1) cm is all along the ray
+    r = tr.static_camera_ray_error(np.array([-0.01, 0.0, -0.01]), goal, tilted)
+    assert r["along_ray"] == pytest.approx(np.sqrt(2) * 0.01, abs=1e-4) and r["across_ray"] == pytest.approx(0.0, abs=1e-4)
+
+
+def test_policy_args_are_typed_by_the_field_and_validated_by_the_config():
+    from lerobot_rnd.configuration_rnd import RnDConfig
+
+    cfg = RnDConfig()
+    new = tr.parse_policy_args(cfg, ["num_inference_steps=1", "use_ema=false", "denoise_step=refine"])
+    assert new.num_inference_steps == 1 and new.use_ema is False and new.denoise_step == "refine"
+    assert cfg.num_inference_steps == 4  # the loaded config is left as it was
+    assert tr.parse_policy_args(cfg, ["use_ema=True"]).use_ema is True
+    for bad, named in [("no_such_field=1", "no_such_field"), ("use_ema=maybe", "true or false"),
+                       ("num_inference_steps=two", "int"), ("num_inference_steps", "FIELD=VALUE")]:
+        with pytest.raises(ValueError, match=named):
+            tr.parse_policy_args(cfg, [bad])
+    with pytest.raises(ValueError, match="num_inference_steps"):  # the config's own range check
+        tr.parse_policy_args(cfg, ["num_inference_steps=0"])
+
+
+def test_reanalyse_adds_the_ray_split_from_the_recordings_static_camera(tmp_path):
+    (tmp_path / "meta").mkdir()
+    (tmp_path / "meta" / "rnd_embodiment.json").write_text(json.dumps({"cameras": {
+        "observation.images.wrist": {"T_ee_cam": np.eye(4).tolist()},
+        "observation.images.top": {"T_world_cam": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 1.0], [0, 0, 0, 1]]}}}))
+    eps = [{"success": False, "goal": [0, 0, 0], "final_tcp": [0.1, 0, -0.05]},
+           {"success": False, "goal": [0, 0, 0], "final_tcp": [0.0, 0.2, 0.01]},
+           {"success": True, "goal": [0, 0, 0], "final_tcp": [0.0, 0.0, 0.0]}]
+    trace = tmp_path / "trace.json"
+    trace.write_text(json.dumps({"episodes": eps}))
+    r = tr.reanalyse(trace, tmp_path)
+    assert r["static_camera"] == "observation.images.top"
+    f = json.loads(trace.read_text())["static_camera_ray_error"]["failures"]
+    assert f["episodes"] == 2 and f["median_across_ray"] == pytest.approx(0.15)
+    assert f["median_along_ray"] == pytest.approx(0.02) and f["median_abs_along_ray"] == pytest.approx(0.03)
