@@ -75,6 +75,9 @@ ROWS = {
     "width_384": (["--policy.dim_model=384"], None, []),
     # observed frames through a ResNet-18 trunk (from scratch, GroupNorm) instead of patch-local embeddings
     "resnet18_obs": (["--policy.obs_encoder=resnet18", "--policy.patch_size=32"], None, []),  # 32: its stride
+    # half the training samples at the sampler's pure-noise first step, where the goal must be read from the
+    # images (1 denoising step gives the same 20 episodes as 4 and 8: that first clean estimate decides)
+    "first_step_0.5": (["--policy.train_first_step_fraction=0.5"], None, []),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }

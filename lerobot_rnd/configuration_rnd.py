@@ -130,6 +130,9 @@ class RnDConfig(PreTrainedConfig):
             (`camera_masking_ratio`: it removes one view's tokens for a whole batch; a per-sample blank view
             keeps shapes static). 0 = off.
         num_train_timesteps: Diffusion steps K used in training.
+        train_first_step_fraction: Training only: the fraction of samples noised at the sampler's first
+            timestep (the pure-noise start, where the network must read the whole action from the images)
+            instead of at a uniform timestep. 0 = uniform over [0, num_train_timesteps) (DDPM).
         beta_schedule: Noise schedule of the DDIM scheduler (diffusers names).
         num_inference_steps: DDIM steps at inference (the paper: 4).
         final_action_step: After the DDIM steps, run one more pass and take its action-space prediction as
@@ -219,6 +222,7 @@ class RnDConfig(PreTrainedConfig):
 
     # Diffusion.
     num_train_timesteps: int = 50
+    train_first_step_fraction: float = 0.0
     beta_schedule: str = "squaredcos_cap_v2"
     num_inference_steps: int = 4
     final_action_step: bool = True
@@ -280,6 +284,11 @@ class RnDConfig(PreTrainedConfig):
             raise ValueError(
                 f"`image_shift_augment` must be in [0, {min(self.image_size) // 2}) pixels (image_size "
                 f"{self.image_size}). Got {self.image_shift_augment}."
+            )
+        if not 0.0 <= self.train_first_step_fraction <= 1.0:
+            raise ValueError(
+                "`train_first_step_fraction` is a fraction of the training samples, in [0, 1] (0 = uniform "
+                f"timesteps). Got {self.train_first_step_fraction}."
             )
         if not 0.0 <= self.camera_dropout <= 1.0:
             raise ValueError(

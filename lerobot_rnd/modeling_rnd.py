@@ -584,7 +584,11 @@ class RnDModel(nn.Module):
         b = T_ee_target.shape[0]
         device = T_ee_target.device
         a_gt = self.action_stats.normalize(action_from_pose(T_ee_target))
-        k = torch.randint(0, cfg.num_train_timesteps, (b,), generator=generator, device="cpu").to(device)
+        k = torch.randint(0, cfg.num_train_timesteps, (b,), generator=generator, device="cpu")
+        if cfg.train_first_step_fraction > 0:  # the sampler's pure-noise start, where the images decide
+            first = torch.rand((b,), generator=generator, device="cpu") < cfg.train_first_step_fraction
+            k = torch.where(first, torch.as_tensor(int(self.inference_timesteps[0])), k)
+        k = k.to(device)
         eps = torch.randn(a_gt.shape, generator=generator, device="cpu").to(device)
         a_noisy = self.noise_scheduler.add_noise(a_gt, eps, k).clamp(-1, 1)
         T_ee_noisy = pose_from_action(self.action_stats.unnormalize(a_noisy))

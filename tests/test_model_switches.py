@@ -136,3 +136,39 @@ def test_resnet_observation_encoder_switch_trains_and_reloads(toy_dataset_root, 
     loaded = RnDPolicy.from_pretrained(tmp_path / "ckpt")
     assert loaded.config.obs_encoder == "resnet18"
     torch.testing.assert_close(loaded.model.network.obs_rgb_encoder.trunk[0].weight, first)
+
+
+def _training_timesteps(policy, batch, repeats: int) -> list[int]:
+    """The diffusion timesteps `policy.forward` draws over `repeats` training passes (read at add_noise)."""
+    seen: list[int] = []
+    scheduler = policy.model.noise_scheduler
+    original = scheduler.add_noise
+
+    def recording(sample, noise, timesteps):
+        seen.extend(int(t) for t in timesteps)
+        return original(sample, noise, timesteps)
+
+    scheduler.add_noise = recording
+    try:
+        for _ in range(repeats):
+            policy.forward(batch)
+    finally:
+        scheduler.add_noise = original
+    return seen
+
+
+def test_train_first_step_fraction_trains_at_the_samplers_pure_noise_start(toy_dataset_root):
+    """1: every training sample is noised at the sampler's first timestep, which for the trailing DDIM schedule
+    is the last training step (num_train_timesteps - 1); 0: uniform timesteps, so other steps appear too; a
+    fraction outside [0, 1] is refused, naming the field."""
+    from lerobot_rnd.configuration_rnd import RnDConfig
+
+    policy, _ = _make_policy(toy_dataset_root, variant="AI", train_first_step_fraction=1.0)
+    batch = _training_batch(toy_dataset_root, policy.config, n=8)
+    last = policy.config.num_train_timesteps - 1
+    assert set(_training_timesteps(policy, batch, repeats=3)) == {last}
+    policy, _ = _make_policy(toy_dataset_root, variant="AI")
+    uniform = _training_timesteps(policy, batch, repeats=3)
+    assert len(set(uniform)) > 5 and min(uniform) >= 0 and max(uniform) <= last
+    with pytest.raises(ValueError, match="train_first_step_fraction"):
+        RnDConfig(train_first_step_fraction=1.5)
