@@ -78,6 +78,9 @@ ROWS = {
     # half the training samples at the sampler's pure-noise first step, where the goal must be read from the
     # images (1 denoising step gives the same 20 episodes as 4 and 8: that first clean estimate decides)
     "first_step_0.5": (["--policy.train_first_step_fraction=0.5"], None, []),
+    # no point maps in (RGB only, renders still drawn on the future frames): is the rendered gripper's explicit 3-D
+    # position a shortcut that lets the network recall demos by where the gripper is instead of reading the goal?
+    "no_point_maps": (["--policy.use_point_map_input=false"], None, []),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
