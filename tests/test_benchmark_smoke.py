@@ -385,3 +385,24 @@ def test_grid_eval_builds_the_env_of_the_demos():
     assert not np.allclose(metaworld_pos, [0.75, 0.075, 0.7])
     with pytest.raises(ValueError, match="--env"):
         env_config("reach-v3", 20, ["camera_names=[corner2]"])
+
+
+def test_a_finished_collected_run_wins_over_an_unfinished_local_one(tmp_path):
+    """A budget stop left a 'running' run.json here; another folder has since finished that run: it is collected,
+    not trained again."""
+    _source_folder(tmp_path / "other", 10, {"act": 1})
+    args = ["--scale", "smoke", "--methods", "act", "--tasks", "reach-v3", "--demos", "3", "--steps", "10",
+            "--batch-size", "4", "--eval-episodes", "2", "--episode-length", "50", "--out", str(tmp_path / "o"),
+            "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d"),
+            "--collect-from", str(tmp_path / "other")]  # fmt: skip
+    b = Benchmark(cli.parse_args(args))
+    local = b.run_dir("act", "reach-v3", 3, 0)
+    local.mkdir(parents=True)
+    (local / "run.json").write_text(json.dumps({"method": "act", "status": "running"}))
+    trained = []
+    b.train = lambda method, *rest: trained.append(method)
+    b.evaluate = lambda *rest: None
+    b.run_one("act", "reach-v3", 3, 0)
+    assert trained == []
+    (run,) = b.collect()
+    assert run["successes"] == 1 and "/other/runs/" in run["collected_from"]

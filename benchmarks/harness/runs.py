@@ -423,11 +423,14 @@ class Benchmark:
         return self.out / "runs" / f"{method}__{task}__n{n}__seed{seed}.json"
 
     def run_state(self, method: str, task: str, n: int, seed: int) -> dict:
+        """This folder's state of a run (its work dir's run.json, else its result JSON); a finished run in a
+        --collect-from folder wins over one this folder started but did not finish (a budget stop leaves a
+        'running' run.json behind, which must not hide the finished run another benchmark made since)."""
         st = _read_json(self.run_dir(method, task, n, seed) / "run.json")
         if st is None:
             st = _read_json(self.result_path(method, task, n, seed))
-        if st is None:
-            st = self.collected_state(method, task, n, seed)
+        if st is None or st.get("status") != "done":
+            st = self.collected_state(method, task, n, seed) or st
         return st or {}
 
     # the settings a collected run must share with this benchmark: results.json's settings key -> this run's value
