@@ -131,10 +131,9 @@ def parse_policy_args(config, pairs: list[str]):
     return dataclasses.replace(config, **overrides) if overrides else config
 
 
-def reanalyse(path: Path, data_root: Path) -> dict:
-    """Add the static-camera ray split to a trace JSON written before it existed (the episodes' final positions
-    and goals are already there); returns the updated result."""
-    result = json.loads(path.read_text())
+def add_ray_split(result: dict, data_root: Path) -> dict:
+    """Add the static-camera ray split (per episode and summed up) to a trace result, in place; a recording
+    without a static camera leaves it as it was."""
     cam = static_camera_position(data_root)
     if cam is not None:
         for ep in result["episodes"]:
@@ -142,6 +141,13 @@ def reanalyse(path: Path, data_root: Path) -> dict:
                                                                     cam[1])  # fmt: skip
         result["static_camera"] = cam[0]
         result["static_camera_ray_error"] = ray_error_summary(result["episodes"], cam[1])
+    return result
+
+
+def reanalyse(path: Path, data_root: Path) -> dict:
+    """Add the static-camera ray split to a trace JSON written before it existed (the episodes' final positions
+    and goals are already there); returns the updated result."""
+    result = add_ray_split(json.loads(path.read_text()), data_root)
     path.write_text(json.dumps(result, indent=1))
     return result
 
@@ -280,9 +286,9 @@ def main(argv=None) -> int:
         "episodes": episodes,
         "seconds": round(time.time() - t0, 1),
     }
+    add_ray_split(result, data)
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(result, indent=1))
-    result = reanalyse(Path(a.out), data)
     for name in ("goal_response", "demo_goal_response"):
         print(name, f"at step {step}:", "  ".join(f"{k} {v['slope']:.2f} (r {v['correlation']:.2f})"
                                                  for k, v in result[name].items()))  # fmt: skip

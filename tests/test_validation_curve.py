@@ -176,9 +176,10 @@ def test_benchmarks_md_section_is_written_from_the_curve_json(tmp_path, monkeypa
 
 
 def test_median_update_time_reads_lerobots_updt_s():
-    from benchmarks.harness.reports import median_update_s_from_log
+    from benchmarks.harness.reports import median_logged, median_update_s_from_log
 
-    text = "step:50 loss:0.5 updt_s:0.300 data_s:0.01\nstep:100 loss:0.4 updt_s:0.900 data_s:0.01\n" \
-           "step:150 loss:0.3 updt_s:0.320 data_s:0.01\n"  # fmt: skip
+    text = "step:50 loss:0.5 updt_s:0.300 data_s:0.01\nstep:100 loss:0.4 updt_s:0.900 data_s:0.05\n" \
+           "step:150 loss:0.3 updt_s:0.320 data_s:0.02\n"  # fmt: skip
     assert median_update_s_from_log(text) == 0.32
+    assert median_logged(text, "data_s") == 0.02  # the data-loading time is not mistaken for updt_s
     assert median_update_s_from_log("no timing logged") is None

@@ -25,10 +25,15 @@ _LOG_LINE = re.compile(r"^\$ |step:([0-9.]+)([KMBT]?) .*?loss:([0-9.]+)", re.MUL
 _SUFFIX = {"": 1, "K": 10**3, "M": 10**6, "B": 10**9, "T": 10**12}
 
 
+def median_logged(text: str, key: str) -> float | None:
+    """Median (upper middle) of a value lerobot-train logs as `key:<number>` (e.g. `updt_s`, `data_s`)."""
+    m = [float(x) for x in re.findall(rf"{re.escape(key)}:([0-9.]+)", text)]
+    return sorted(m)[len(m) // 2] if m else None
+
+
 def median_update_s_from_log(text: str) -> float | None:
     """Median of lerobot-train's logged `updt_s` (seconds per optimiser step, data loading excluded)."""
-    m = [float(x) for x in re.findall(r"updt_s:([0-9.]+)", text)]
-    return sorted(m)[len(m) // 2] if m else None
+    return median_logged(text, "updt_s")
 
 
 def loss_curve_from_log(text: str, log_freq: int) -> list[tuple[int, float]]:

@@ -18,7 +18,7 @@ from pathlib import Path
 from . import REPO_ROOT, grid_eval
 from .files import _read_json, _rel, _write_json
 from .processes import OutOfTime, git_commit, run_logged, tool_argv
-from .reports import loss_curve_from_log, median_update_s_from_log, rnd_losses, wilson_interval, write_report_files
+from .reports import loss_curve_from_log, median_logged, median_update_s_from_log, rnd_losses, wilson_interval, write_report_files
 from .scales import COMMON_METHOD_ARGS, CONFIG_DIR, METHODS, SCALES, method_family
 
 HARNESS_VERSION = 1
@@ -324,9 +324,8 @@ class Benchmark:
         if m:
             st["update_s_last_logged"] = float(m[-1])
             st["update_s_median_logged"] = median_update_s_from_log(text)
-        m = re.findall(r"data_s:([0-9.]+)", text)
-        if m:
-            st["data_s_median_logged"] = sorted(float(x) for x in m)[len(m) // 2]
+        if (data_s := median_logged(text, "data_s")) is not None:
+            st["data_s_median_logged"] = data_s
         curve = loss_curve_from_log(text, log_freq)
         if curve:
             st["loss_curve"] = curve
