@@ -134,7 +134,8 @@ class RnDConfig(PreTrainedConfig):
             timestep (the pure-noise start, where the network must read the whole action from the images)
             instead of at a uniform timestep. 0 = uniform over [0, num_train_timesteps) (DDPM).
         beta_schedule: Noise schedule of the DDIM scheduler (diffusers names).
-        num_inference_steps: DDIM steps at inference (the paper: 4).
+        num_inference_steps: DDIM steps at inference (the paper: 4). The CPU tier (rnd_ai_cpu.json) uses 1: on
+            the CPU benchmark's three tasks it solved as many test episodes as 4 or one more (docs/REACH.md).
         final_action_step: After the DDIM steps, run one more pass and take its action-space prediction as
             the final, precise action (variants A and AI).
         per_horizon_action_normalization: Normalise each horizon step's 6-D action with its own min/max
