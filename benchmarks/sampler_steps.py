@@ -24,6 +24,7 @@ first step count given, measured in the same call.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import shlex
 import subprocess
@@ -52,6 +53,11 @@ def flag(argv: list[str], name: str) -> str | None:
     return vals[-1] if vals else None
 
 
+def checkpoint_name(task: str, path: str) -> str:
+    """A stable name for a --checkpoint entry: the task and a short digest of the folder's resolved path."""
+    return f"{task}__{hashlib.sha1(str(Path(path).resolve()).encode()).hexdigest()[:8]}"
+
+
 def targets_from_args(a: argparse.Namespace) -> list[dict]:
     """One dict per checkpoint: name, task, eval commands (one per chunk) and the committed successes if any."""
     out = []
@@ -71,7 +77,7 @@ def targets_from_args(a: argparse.Namespace) -> list[dict]:
         cmd = ["lerobot-eval", f"--policy.path={path}", "--policy.device=cpu", "--env.type=rnd_mw",
                f"--env.task={task}", "--env.episode_length=300", f"--eval.n_episodes={a.episodes}",
                f"--eval.batch_size={min(10, a.episodes)}", f"--seed={a.seed}"]  # fmt: skip
-        out.append({"name": f"{task}__{Path(path).parents[2].name}", "task": task, "method": "rnd", "source": path,
+        out.append({"name": checkpoint_name(task, path), "task": task, "method": "rnd", "source": path,
                     "commands": [cmd], "committed_successes": None, "checkpoint": path})  # fmt: skip
     return out
 

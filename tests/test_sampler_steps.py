@@ -92,3 +92,10 @@ def test_benchmarks_md_section_says_which_seeds_and_whether_the_committed_run_re
     assert "evaluation seeds" in text and "validation" not in text
     assert "| run | reach-v3 | 1 | 2/2 |" in text and "| 75 | 0.75 | 1/2 |" in text
     assert "1 of 1 checkpoints repeat" in text  # only the 4-step entry is compared with the committed run
+
+
+def test_checkpoint_entries_get_stable_distinct_names(tmp_path):
+    a, b = tmp_path / "run_a" / "pretrained_model", tmp_path / "run_b" / "pretrained_model"
+    assert ss.checkpoint_name("reach-v3", str(a)) == ss.checkpoint_name("reach-v3", str(a))  # resume finds it
+    assert ss.checkpoint_name("reach-v3", str(a)) != ss.checkpoint_name("reach-v3", str(b))
+    assert ss.checkpoint_name("reach-v3", str(a)).startswith("reach-v3__")
