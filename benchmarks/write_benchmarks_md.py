@@ -298,7 +298,7 @@ def inference_section(res: dict, name: str = "inference_cpu_tier.json") -> list[
         f"### One action chunk at inference (CPU{f', {cpu}' if cpu else ''})",
         "",
         f"`{res['command']}` (batch {res['args']['batch']}, median of {res['args']['repeats']} interleaved calls "
-        f"after warm-up; JSON: [`benchmarks/results/{name}`](../benchmarks/results/{name})).",
+        f"after warm-up; JSON: [`benchmarks/results/{name}`](../benchmarks/results/{name})).{' ' + res['note'] if res.get('note') else ''}",
         "",
         "| method (config) | median per chunk | ratio to ACT |",
         "| --- | ---: | ---: |",
