@@ -122,10 +122,11 @@ def main(argv=None) -> int:
         print(f"\n{task}: the demos themselves (recorded actions replayed), final gripper-goal distance (cm): "
               + " ".join(f"{100 * e['final_obj_to_target_m']:.1f}" for e in eps))
         print("  max rewards: " + " ".join(f"{e['max_reward']:.2f}" for e in eps))
-    print(f"\n{'method':<10}{'task':<28}{'success on training placements':>32}  max rewards")
+    w = max([len("method")] + [len(r["method"]) for r in rows]) + 2  # --extra names can be long
+    print(f"\n{'method':<{w}}{'task':<28}{'success on training placements':>32}  max rewards")
     for r in rows:
-        print(f"{r['method']:<10}{r['task']:<28}{r['successes']:>4}/{r['episodes']:<3} ({r['ci95'][0]:.0%}-"
-              f"{r['ci95'][1]:.0%})".ljust(70) + " ".join(f"{x:.2f}" for x in r["max_rewards"]))
+        print(f"{r['method']:<{w}}{r['task']:<28}{r['successes']:>4}/{r['episodes']:<3} ({r['ci95'][0]:.0%}-"
+              f"{r['ci95'][1]:.0%})".ljust(w + 60) + " ".join(f"{x:.2f}" for x in r["max_rewards"]))
     out = {"description": __doc__.strip().splitlines()[0],
            "command": "python benchmarks/eval_train_placements.py " + " ".join(argv if argv is not None else sys.argv[1:]),
            "rows": rows, "demos": demos}  # fmt: skip
