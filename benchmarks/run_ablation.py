@@ -81,6 +81,9 @@ ROWS = {
     # no point maps in (RGB only, renders still drawn on the future frames): is the rendered gripper's explicit 3-D
     # position a shortcut that lets the network recall demos by where the gripper is instead of reading the goal?
     "no_point_maps": (["--policy.use_point_map_input=false"], None, []),
+    # one observation instead of two: with a history frame, behaviour cloning can learn to continue the past
+    # motion instead of reading the goal (the "copycat" problem, Wen et al. 2020); ACT sees one observation
+    "obs_steps_1": (["--policy.n_obs_steps=1"], None, []),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
