@@ -7,7 +7,8 @@ Two ways to name what to evaluate:
   its own ``lerobot-eval`` commands are replayed chunk by chunk (same checkpoint, same seeds, same env flags),
   each with ``--policy.num_inference_steps=N`` added and its own output folder. The run's committed successes
   are copied beside the new ones, so a rerun at the default step count checks that the numbers reproduce.
-* ``--checkpoint TASK=DIR`` with ``--seed`` and ``--episodes``: one ``lerobot-eval`` call per step count.
+* ``--checkpoint TASK=DIR`` with ``--seed`` and ``--episodes``: one ``lerobot-eval`` call per step count, its env
+  built with the cameras of the demos the checkpoint was trained on (from its ``train_config.json``).
 
     # test seeds of the CPU benchmark's R&D-AI runs, 4 steps (the default) against 1
     python benchmarks/sampler_steps.py --inference-steps 4,1 --out benchmarks/results/one_step_sampling_test.json \
@@ -35,6 +36,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from benchmarks.harness.reports import wilson_interval  # noqa: E402
+from lerobot_rnd.sim.record import RECORDING_FILE, recorded_env_args  # noqa: E402
 
 WORK = REPO / "outputs" / "sampler_steps"
 TEST_SEEDS_FROM = 1000  # the benchmark's evaluation seeds; validation seeds stay below
@@ -51,6 +53,24 @@ def flag(argv: list[str], name: str) -> str | None:
     """Value of ``--name=value`` in ``argv`` (the last one wins, as with draccus), else None."""
     vals = [a.split("=", 1)[1] for a in argv if a.startswith(f"--{name}=")]
     return vals[-1] if vals else None
+
+
+def training_env_args(checkpoint: Path) -> list[str]:
+    """The ``--env.*`` flags that rebuild the cameras the checkpoint's demos were recorded with, read from its
+    ``train_config.json`` (``dataset.root``) and that dataset's ``meta/rnd_recording.json``; [] when the demos
+    were not recorded by ``lerobot-rnd-record`` (nothing to reproduce). A recorded dataset that is missing is an
+    error: evaluating with the env's default cameras could show the policy a view it was never trained on."""
+    cfg_file = checkpoint / "train_config.json"
+    if not cfg_file.exists():
+        return []
+    root = json.loads(cfg_file.read_text()).get("dataset", {}).get("root")
+    if not root:
+        return []
+    rec = Path(root) / RECORDING_FILE
+    if not Path(root).exists():
+        raise SystemExit(f"--checkpoint {checkpoint}: its training dataset {root} (train_config.json's dataset.root) "
+                         "is missing, so the cameras it was recorded with are unknown; restore the dataset")
+    return recorded_env_args(json.loads(rec.read_text())["settings"]) if rec.exists() else []
 
 
 def checkpoint_name(task: str, path: str) -> str:
@@ -76,7 +96,8 @@ def targets_from_args(a: argparse.Namespace) -> list[dict]:
             raise SystemExit(f"--checkpoint {spec!r}: expected TASK=DIR with DIR a pretrained_model folder")
         cmd = ["lerobot-eval", f"--policy.path={path}", "--policy.device=cpu", "--env.type=rnd_mw",
                f"--env.task={task}", "--env.episode_length=300", f"--eval.n_episodes={a.episodes}",
-               f"--eval.batch_size={min(10, a.episodes)}", f"--seed={a.seed}"]  # fmt: skip
+               f"--eval.batch_size={min(10, a.episodes)}", f"--seed={a.seed}",
+               *training_env_args(Path(path))]  # fmt: skip
         out.append({"name": checkpoint_name(task, path), "task": task, "method": "rnd", "source": path,
                     "commands": [cmd], "committed_successes": None, "checkpoint": path})  # fmt: skip
     return out

@@ -99,3 +99,28 @@ def test_checkpoint_entries_get_stable_distinct_names(tmp_path):
     assert ss.checkpoint_name("reach-v3", str(a)) == ss.checkpoint_name("reach-v3", str(a))  # resume finds it
     assert ss.checkpoint_name("reach-v3", str(a)) != ss.checkpoint_name("reach-v3", str(b))
     assert ss.checkpoint_name("reach-v3", str(a)).startswith("reach-v3__")
+
+
+def test_checkpoint_mode_evaluates_with_the_cameras_its_demos_were_recorded_with(tmp_path):
+    """A checkpoint trained on corner2 + topview demos must not be evaluated with the env's default cameras."""
+    data = tmp_path / "demos"
+    (data / "meta").mkdir(parents=True)
+    (data / "meta" / "rnd_recording.json").write_text(json.dumps(
+        {"settings": {"suite": "metaworld", "cameras": ["corner2", "topview"]}}))
+    ckpt = tmp_path / "pretrained_model"
+    ckpt.mkdir()
+    (ckpt / "train_config.json").write_text(json.dumps({"dataset": {"root": str(data)}}))
+    a = ss.argparse.Namespace(run_json=[], checkpoint=[f"reach-v3={ckpt}"], seed=100, episodes=20)
+    (target,) = ss.targets_from_args(a)
+    assert "--env.camera_names=[corner2,topview]" in target["commands"][0]
+
+    # the env's default cameras: no camera flag; the demos gone: refused rather than guessed
+    (data / "meta" / "rnd_recording.json").write_text(json.dumps(
+        {"settings": {"suite": "metaworld", "cameras": ["corner2", "behindGripper"]}}))
+    (target,) = ss.targets_from_args(a)
+    assert not any(x.startswith("--env.camera_names") for x in target["commands"][0])
+    (data / "meta" / "rnd_recording.json").unlink()
+    (data / "meta").rmdir()
+    data.rmdir()
+    with pytest.raises(SystemExit, match="dataset.root"):
+        ss.targets_from_args(a)
