@@ -84,6 +84,9 @@ ROWS = {
     # one observation instead of two: with a history frame, behaviour cloning can learn to continue the past
     # motion instead of reading the goal (the "copycat" problem, Wen et al. 2020); ACT sees one observation
     "obs_steps_1": (["--policy.n_obs_steps=1"], None, []),
+    # dropout in the transformer (ACT trains with 0.1): R&D-AI fits its demos but carries them over to new goals
+    # less than ACT does
+    "dropout_0.1": (["--policy.dropout=0.1"], None, []),
     "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
                     ["--policy.point_update=ddim"]),  # fmt: skip
 }
