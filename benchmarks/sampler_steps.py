@@ -36,7 +36,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from benchmarks.harness.reports import wilson_interval  # noqa: E402
-from lerobot_rnd.sim.record import RECORDING_FILE, recorded_env_args  # noqa: E402
+from lerobot_rnd.sim.record import training_env_args  # noqa: E402
 
 WORK = REPO / "outputs" / "sampler_steps"
 TEST_SEEDS_FROM = 1000  # the benchmark's evaluation seeds; validation seeds stay below
@@ -55,22 +55,15 @@ def flag(argv: list[str], name: str) -> str | None:
     return vals[-1] if vals else None
 
 
-def training_env_args(checkpoint: Path) -> list[str]:
-    """The ``--env.*`` flags that rebuild the cameras the checkpoint's demos were recorded with, read from its
-    ``train_config.json`` (``dataset.root``) and that dataset's ``meta/rnd_recording.json``; [] when the demos
-    were not recorded by ``lerobot-rnd-record`` (nothing to reproduce). A recorded dataset that is missing is an
-    error: evaluating with the env's default cameras could show the policy a view it was never trained on."""
-    cfg_file = checkpoint / "train_config.json"
-    if not cfg_file.exists():
+def checkpoint_env_args(checkpoint: Path) -> list[str]:
+    """The ``--env.*`` flags of the demos ``checkpoint`` (a pretrained_model folder) was trained on."""
+    cfg = checkpoint / "train_config.json"
+    if not cfg.exists():
         return []
-    root = json.loads(cfg_file.read_text()).get("dataset", {}).get("root")
-    if not root:
-        return []
-    rec = Path(root) / RECORDING_FILE
-    if not Path(root).exists():
-        raise SystemExit(f"--checkpoint {checkpoint}: its training dataset {root} (train_config.json's dataset.root) "
-                         "is missing, so the cameras it was recorded with are unknown; restore the dataset")
-    return recorded_env_args(json.loads(rec.read_text())["settings"]) if rec.exists() else []
+    try:
+        return training_env_args(json.loads(cfg.read_text()))
+    except FileNotFoundError as e:
+        raise SystemExit(f"--checkpoint {checkpoint}: {e}") from None
 
 
 def checkpoint_name(task: str, path: str) -> str:
@@ -97,7 +90,7 @@ def targets_from_args(a: argparse.Namespace) -> list[dict]:
         cmd = ["lerobot-eval", f"--policy.path={path}", "--policy.device=cpu", "--env.type=rnd_mw",
                f"--env.task={task}", "--env.episode_length=300", f"--eval.n_episodes={a.episodes}",
                f"--eval.batch_size={min(10, a.episodes)}", f"--seed={a.seed}",
-               *training_env_args(Path(path))]  # fmt: skip
+               *checkpoint_env_args(Path(path))]  # fmt: skip
         out.append({"name": checkpoint_name(task, path), "task": task, "method": "rnd", "source": path,
                     "commands": [cmd], "committed_successes": None, "checkpoint": path})  # fmt: skip
     return out

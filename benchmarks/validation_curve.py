@@ -86,18 +86,6 @@ def plot(res: dict, png: Path) -> None:
     plt.close(fig)
 
 
-def dataset_env_args(train_config: dict) -> list[str]:
-    """lerobot-eval's ``--env.*`` flags for the observations of the run's training demos (their recording log),
-    so that the policy is evaluated on the cameras it was trained on; none for a dataset without a log."""
-    from lerobot_rnd.sim.record import RECORDING_FILE, recorded_env_args
-
-    root = (train_config.get("dataset") or {}).get("root")
-    log = Path(root) / RECORDING_FILE if root else None
-    if log is None or not log.exists():
-        return []
-    return recorded_env_args(json.loads(log.read_text()).get("settings") or {})
-
-
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--train-dir", required=True, help="a lerobot-train --output_dir (holds checkpoints/ and, "
@@ -131,7 +119,12 @@ def main(argv=None) -> int:
                 "give another --out")  # fmt: skip
     cfg = json.loads((train_dir / "checkpoints" / f"{available[-1]:06d}" / "pretrained_model" /
                       "train_config.json").read_text())  # fmt: skip
-    env_args = dataset_env_args(cfg)
+    from lerobot_rnd.sim.record import training_env_args  # the demos' cameras (imports lerobot: not at the top)
+
+    try:
+        env_args = training_env_args(cfg)
+    except FileNotFoundError as e:
+        p.error(str(e))
     train_log = next(
         (f for f in (train_dir / "train.log", train_dir.parent / "train.log") if f.exists()), None
     )

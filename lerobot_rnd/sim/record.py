@@ -112,6 +112,21 @@ def recorded_env_args(log_settings: dict) -> list[str]:
     return [f"--env.{k}={flag(v)}" for k, v in recorded_env_overrides(log_settings).items()]
 
 
+def training_env_args(train_config: dict) -> list[str]:
+    """``recorded_env_args`` of the demos a checkpoint was trained on: ``train_config`` is its
+    ``train_config.json``, whose ``dataset.root`` holds the recording log. [] when there is no root or the dataset
+    has no log (not recorded by ``lerobot-rnd-record``: nothing to reproduce). A root that is gone raises
+    ``FileNotFoundError``: evaluating with the env's default cameras could show the policy a view it never saw."""
+    root = (train_config.get("dataset") or {}).get("root")
+    if not root:
+        return []
+    if not Path(root).exists():
+        raise FileNotFoundError(f"the training dataset {root} (train_config.json's dataset.root) is missing, so the "
+                                "cameras its demos were recorded with are unknown; restore the dataset")
+    log = Path(root) / RECORDING_FILE
+    return recorded_env_args(json.loads(log.read_text()).get("settings") or {}) if log.exists() else []
+
+
 # --------------------------------------------------------------------------------------------------
 # user errors
 # --------------------------------------------------------------------------------------------------
