@@ -612,13 +612,15 @@ class JointPositionAdapter(ActionAdapter):
         device = torch.device(device)
         key = (str(device), dtype)
         if key not in self._chains:
-            try:
-                ch = pk.build_serial_chain_from_urdf(self._urdf_text, self.ee_link, self.root_link)
-            except Exception as e:  # pk raises assorted errors for unknown links
-                raise ValueError(
-                    f"cannot build a serial chain to link {self.ee_link!r} from the URDF: {e}"
-                ) from e
-            self._chains[key] = ch.to(dtype=dtype, device=device)
+            # Built outside inference mode even when first asked for under it, so that training can use it too.
+            with torch.inference_mode(False):
+                try:
+                    ch = pk.build_serial_chain_from_urdf(self._urdf_text, self.ee_link, self.root_link)
+                except Exception as e:  # pk raises assorted errors for unknown links
+                    raise ValueError(
+                        f"cannot build a serial chain to link {self.ee_link!r} from the URDF: {e}"
+                    ) from e
+                self._chains[key] = ch.to(dtype=dtype, device=device)
         return self._chains[key]
 
     def _joints_from_state(self, state: Tensor | None, like: Tensor) -> Tensor:

@@ -248,6 +248,7 @@ class Rasterizer:
         chunk_candidates: candidate pixels evaluated per step (bounds temporary memory).
     """
 
+    @torch.inference_mode(False)  # its constant tables stay normal tensors, usable in every mode
     def __init__(
         self,
         meshes: MeshBatch,
@@ -306,7 +307,18 @@ class Rasterizer:
         for x in set(self.levels_r) | set(self.levels_s) | {x for t in tiers for x in t}:
             self._ar[x] = torch.arange(x, device=device)
             self._arf[x] = torch.arange(x, device=device, dtype=torch.float32)
-        self._cache: dict = {}
+        # Work buffers and index tables reused between calls, one set per inference mode: a tensor created under
+        # torch.inference_mode() is an inference tensor, which may not be updated in place outside it (LeRobot's
+        # rollout samples under inference mode; training between rollouts renders the same sizes outside it).
+        # Code traced by torch.compile (which cannot ask for the mode) keeps a set of its own.
+        self._caches: dict[str, dict] = {"inference": {}, "normal": {}, "compiled": {}}
+
+    @property
+    def _cache(self) -> dict:
+        """The reusable buffers of the current mode: inference mode, normal, or traced by torch.compile."""
+        if torch.compiler.is_compiling():
+            return self._caches["compiled"]
+        return self._caches["inference" if torch.is_inference_mode_enabled() else "normal"]
 
     # ------------------------------------------------------------------ setup
     def _prep(self, mesh_index: Tensor, T_cam_obj: Tensor, K: Tensor):

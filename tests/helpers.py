@@ -325,3 +325,35 @@ def record_training_losses(root, steps: int = LOSS_STEPS) -> list[dict[str, floa
         optimizer.step()
         losses.append({"loss": loss.item(), **info})
     return losses
+
+
+#: A 6-revolute-joint test arm (name, axis, origin xyz in the parent link frame), ending in a fixed "tool" link.
+SIX_JOINT_LINKS = ["base_link", "link1", "link2", "link3", "link4", "link5", "link6", "tool"]
+SIX_JOINTS = [
+    ("j1", "0 0 1", "0 0 0.1"),
+    ("j2", "0 1 0", "0 0 0.2"),
+    ("j3", "0 1 0", "0.3 0 0"),
+    ("j4", "1 0 0", "0.25 0 0"),
+    ("j5", "0 1 0", "0.05 0 0"),
+    ("j6", "1 0 0", "0.05 0 0"),
+]
+
+
+def six_joint_urdf() -> str:
+    """The URDF text of the `SIX_JOINTS` arm."""
+    links = SIX_JOINT_LINKS
+    parts = ['<?xml version="1.0"?>', '<robot name="arm6">']
+    parts += [f'  <link name="{n}"/>' for n in links]
+    for i, (name, axis, xyz) in enumerate(SIX_JOINTS):
+        parts.append(
+            f'  <joint name="{name}" type="revolute">'
+            f'<parent link="{links[i]}"/><child link="{links[i + 1]}"/>'
+            f'<origin xyz="{xyz}" rpy="0 0 0"/><axis xyz="{axis}"/>'
+            f'<limit lower="-3.0" upper="3.0" effort="10" velocity="1"/></joint>'
+        )
+    parts.append(
+        '  <joint name="tool_fixed" type="fixed"><parent link="link6"/><child link="tool"/>'
+        '<origin xyz="0.1 0 0" rpy="0 0 0"/></joint>'
+    )
+    parts.append("</robot>")
+    return "\n".join(parts)

@@ -20,6 +20,7 @@ from lerobot_rnd.action_adapters import (
     make_action_adapter,
     vector_to_chunk,
 )
+from tests.helpers import six_joint_urdf
 
 DT = torch.float64
 
@@ -200,38 +201,9 @@ def test_absolute_with_frame_offset():
 
 # ------------------------------------------------------------------ 4. joint positions
 
-LINKS = ["base_link", "link1", "link2", "link3", "link4", "link5", "link6", "tool"]
-JOINTS = [  # name, axis, origin xyz (in the parent link frame)
-    ("j1", "0 0 1", "0 0 0.1"),
-    ("j2", "0 1 0", "0 0 0.2"),
-    ("j3", "0 1 0", "0.3 0 0"),
-    ("j4", "1 0 0", "0.25 0 0"),
-    ("j5", "0 1 0", "0.05 0 0"),
-    ("j6", "1 0 0", "0.05 0 0"),
-]
-
-
-def make_urdf():
-    parts = ['<?xml version="1.0"?>', '<robot name="arm6">']
-    parts += [f'  <link name="{n}"/>' for n in LINKS]
-    for i, (name, axis, xyz) in enumerate(JOINTS):
-        parts.append(
-            f'  <joint name="{name}" type="revolute">'
-            f'<parent link="{LINKS[i]}"/><child link="{LINKS[i + 1]}"/>'
-            f'<origin xyz="{xyz}" rpy="0 0 0"/><axis xyz="{axis}"/>'
-            f'<limit lower="-3.0" upper="3.0" effort="10" velocity="1"/></joint>'
-        )
-    parts.append(
-        '  <joint name="tool_fixed" type="fixed"><parent link="link6"/><child link="tool"/>'
-        '<origin xyz="0.1 0 0" rpy="0 0 0"/></joint>'
-    )
-    parts.append("</robot>")
-    return "\n".join(parts)
-
-
 @pytest.fixture(scope="module")
 def joint_adapter():
-    return JointPositionAdapter(urdf=make_urdf(), ee_link="tool", ik_max_iterations=200)
+    return JointPositionAdapter(urdf=six_joint_urdf(), ee_link="tool", ik_max_iterations=200)
 
 
 def test_joint_fk_planar_hand_computed(joint_adapter):
@@ -265,7 +237,7 @@ def test_joint_to_rnd_and_ik_roundtrip(joint_adapter):
     B, T = 3, 8
     q_now, q_target = _random_joint_chunk(B, T, seed=7)
     grip = torch.tensor([0.0, 1.0, 0.2, 0.9] * 6, dtype=DT)[: B * T].reshape(B, T)
-    ad2 = JointPositionAdapter(urdf=make_urdf(), ee_link="tool", gripper_open=0.0, gripper_closed=1.0)
+    ad2 = JointPositionAdapter(urdf=six_joint_urdf(), ee_link="tool", gripper_open=0.0, gripper_closed=1.0)
     action = torch.cat([q_target, grip[..., None]], -1)
     T_world_ee = ad.forward_kinematics(q_now)
     T_rnd, g = ad2.to_rnd(action, T_world_ee, state=q_now)
@@ -288,7 +260,7 @@ def test_joint_to_rnd_and_ik_roundtrip(joint_adapter):
 
 def test_joint_ik_float32_state_with_extra_dims(joint_adapter):
     ad = JointPositionAdapter(
-        urdf=make_urdf(), ee_link="tool", gripper=False, state_joint_indices=[1, 2, 3, 4, 5, 6]
+        urdf=six_joint_urdf(), ee_link="tool", gripper=False, state_joint_indices=[1, 2, 3, 4, 5, 6]
     )
     q_now, q_target = _random_joint_chunk(2, 4, seed=8)
     q_now, q_target = q_now.float(), q_target.float()
@@ -308,7 +280,7 @@ def test_joint_errors(joint_adapter):
     with pytest.raises(ValueError, match="state"):
         joint_adapter.from_rnd(T, torch.ones(2, 8), torch.eye(4))
     with pytest.raises(ValueError, match="nope"):
-        JointPositionAdapter(urdf=make_urdf(), ee_link="nope")
+        JointPositionAdapter(urdf=six_joint_urdf(), ee_link="nope")
 
 
 # ------------------------------------------------------------------ factory, serialisation
