@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 
 os.environ.setdefault("HF_HUB_OFFLINE", "1")
+os.environ.setdefault("LEROBOT_RND_PATCH_ALL", "1")  # every method reads data the plugin's way, as lerobot-train
 
 import torch
 

@@ -10,9 +10,9 @@ two-camera MetaWorld dataset, where 6 are needed (and 24 per Diffusion Policy sa
 `install_column_first_queries()` replaces that method with one that selects the key's column before indexing,
 so only that column is decoded. The result is the same dict of tensors, element for element
 (`tests/test_dataset_query.py` compares both on a recorded dataset and counts the decodes). It is installed by
-the plugin shim (`lerobot_policy_rnd`), so it applies to every `lerobot-train` run on this machine (ACT and
-Diffusion Policy too), only on the LeRobot version it was checked against, and never when
-``LEROBOT_RND_DATASET_QUERY=upstream`` is set.
+the plugin shim (`lerobot_policy_rnd`) for `rnd` runs (other policies only with ``LEROBOT_RND_PATCH_ALL=1``;
+`lerobot_rnd.plugin_scope`) and by `RnDPolicy` itself, only on the LeRobot version it was checked against, and
+never when ``LEROBOT_RND_DATASET_QUERY=upstream`` is set.
 """
 
 from __future__ import annotations

@@ -74,9 +74,11 @@ class RnDPolicy(PreTrainedPolicy):
             )
         embodiment_meshes = resolve_embodiment(config, dataset_meta)
         if dataset_meta is not None:  # training from scratch: fail now, not after the run, if the push cannot work
+            from lerobot_rnd.dataset_query import install_column_first_queries
             from lerobot_rnd.model_card import check_hub_push_ready
 
             check_hub_push_ready(config)
+            install_column_first_queries()  # an rnd training run reads its dataset column first (dataset_query.py)
         self.model = RnDModel(config, embodiment_meshes)
         if dataset_meta is not None:
             self.model.fit_statistics(dataset_meta)

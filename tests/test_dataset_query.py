@@ -4,6 +4,7 @@ The reference is LeRobot 0.4.4's own `_query_hf_dataset`, run on the same record
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 
@@ -74,24 +75,50 @@ def test_same_samples_as_lerobot_with_fewer_png_decodes(toy_dataset_root, upstre
     assert upstream_decodes == len(indices) * (n_cams + 2 * n_cams * n_cams + 2 * n_cams + 8 * n_cams)
 
 
-def _installed_in_fresh_process(env_value: str | None) -> str:
+def _installed_in_fresh_process(argv: list[str], env: dict | None = None) -> tuple[str, bool]:
+    """(module of LeRobotDataset._query_hf_dataset, whether sys.excepthook was replaced) after LeRobot's plugin
+    discovery in a fresh process whose command line is `argv`, as lerobot-train runs it."""
     code = (
-        "import lerobot_policy_rnd\n"
+        "import sys\n"
+        f"sys.argv = {argv!r}\n"
+        "from lerobot.utils.import_utils import register_third_party_plugins\n"
+        "register_third_party_plugins()\n"
         "from lerobot.datasets.lerobot_dataset import LeRobotDataset\n"
-        "print(LeRobotDataset._query_hf_dataset.__module__)\n"
+        "print(LeRobotDataset._query_hf_dataset.__module__, sys.excepthook is not sys.__excepthook__)\n"
     )
-    env = {"LEROBOT_RND_DATASET_QUERY": env_value} if env_value is not None else {}
     import os
 
-    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, **env}, capture_output=True, text=True,
+    base = {k: v for k, v in os.environ.items() if k not in ("LEROBOT_RND_PATCH_ALL", dataset_query.OPT_OUT_ENV)}
+    out = subprocess.run([sys.executable, "-c", code], env={**base, **(env or {})}, capture_output=True, text=True,
                          check=True)  # fmt: skip
-    return out.stdout.strip().splitlines()[-1]
+    module, hooked = out.stdout.strip().splitlines()[-1].split()
+    return module, hooked == "True"
 
 
-def test_the_plugin_shim_installs_it_and_the_environment_can_opt_out(monkeypatch):
-    monkeypatch.delenv(dataset_query.OPT_OUT_ENV, raising=False)
-    assert _installed_in_fresh_process(None) == "lerobot_rnd.dataset_query"
-    assert _installed_in_fresh_process("upstream") == "lerobot.datasets.lerobot_dataset"
+UPSTREAM, PATCHED = "lerobot.datasets.lerobot_dataset", "lerobot_rnd.dataset_query"
+
+
+def test_an_act_run_with_the_plugin_installed_keeps_lerobots_own_query_and_excepthook():
+    act = ["lerobot-train", "--policy.type=act", "--dataset.repo_id=local/x"]
+    assert _installed_in_fresh_process(act) == (UPSTREAM, False)
+    assert _installed_in_fresh_process(["lerobot-train", "--policy.type", "diffusion"]) == (UPSTREAM, False)
+    # opting in applies both to every policy
+    assert _installed_in_fresh_process(act, {"LEROBOT_RND_PATCH_ALL": "1"}) == (PATCHED, True)
+
+
+def test_rnd_runs_get_the_column_first_query_and_can_opt_out(tmp_path):
+    assert _installed_in_fresh_process(["lerobot-train", "--policy.type=rnd"]) == (PATCHED, True)
+    assert _installed_in_fresh_process(["lerobot-train", "--policy.type", "rnd"]) == (PATCHED, True)
+    config = tmp_path / "train.json"
+    config.write_text(json.dumps({"policy": {"type": "rnd"}, "steps": 3}))
+    assert _installed_in_fresh_process(["lerobot-train", f"--config_path={config}"]) == (PATCHED, True)
+    config.write_text(json.dumps({"policy": {"type": "act"}, "steps": 3}))
+    assert _installed_in_fresh_process(["lerobot-train", f"--config_path={config}"]) == (UPSTREAM, False)
+    (tmp_path / "ckpt").mkdir()
+    (tmp_path / "ckpt" / "config.json").write_text(json.dumps({"type": "rnd"}))
+    assert _installed_in_fresh_process(["lerobot-eval", f"--policy.path={tmp_path / 'ckpt'}"]) == (PATCHED, True)
+    opt_out = {dataset_query.OPT_OUT_ENV: "upstream"}
+    assert _installed_in_fresh_process(["lerobot-train", "--policy.type=rnd"], opt_out) == (UPSTREAM, True)
 
 
 def test_other_lerobot_versions_keep_their_own_query(upstream_and_patched, monkeypatch):

@@ -136,6 +136,8 @@ class OutOfTime(Exception):
 # imported first
 def _exec_tool(tool: str, args: list[str]) -> int:
     sys.path.insert(0, str(REPO_ROOT))
+    # Every method reads the dataset the same way (the plugin's column-first query), so the comparison is fair.
+    os.environ.setdefault("LEROBOT_RND_PATCH_ALL", "1")
     import lerobot_policy_rnd  # noqa: F401  (registers --policy.type=rnd and --env.type=rnd_mw)
 
     sys.argv = [tool, *args]
