@@ -10,7 +10,7 @@ Times one action-chunk inference (`predict_action_chunk`, batch 1 by default) of
 all with two 128x128 cameras (`observation.images.front` / `.wrist`), a 4-D `observation.state` and a 4-D
 `action`, untrained weights and no downloads (`pretrained_backbone_weights=None`). ACT and Diffusion Policy
 are timed on already-normalised random tensors (their normalisers live in the processors). R&D is built on
-the toy embodiment of tests/toy_data.py (a two-finger box gripper, one static and one wrist camera) and
+the toy embodiment of lerobot_rnd/testing.py (a two-finger box gripper, one static and one wrist camera) and
 gets a plausible action range (+-8 cm, +-0.3 rad) so the noisy grippers land in the images as they do on a
 real task; `--rnd-stats identity` keeps the untrained default (+-1 m, +-1 rad) instead.
 
@@ -458,7 +458,7 @@ def main(argv=None) -> None:
     if "cuda" in devices and not torch.cuda.is_available():
         parser.error("--device cuda but CUDA is not available")
 
-    from tests.toy_data import toy_embodiment
+    from lerobot_rnd.testing import toy_embodiment
 
     info = machine_info(devices)
     print(json.dumps({k: v for k, v in info.items() if k != "devices"}), flush=True)

@@ -155,7 +155,7 @@ def main(argv=None) -> int:
     import bench_inference
 
     bench_inference.RND_CONFIGS[size] = overrides
-    from tests.toy_data import toy_embodiment
+    from lerobot_rnd.testing import toy_embodiment
 
     with tempfile.TemporaryDirectory() as tmp:
         emb = str(toy_embodiment(image_size=IMAGE_SIZE).save_json(Path(tmp) / "toy_128.json"))

@@ -8,14 +8,14 @@ switches, and merges the row into `benchmarks/results/ablation_cpu.json`. Finish
 whose checkpoint exists is only evaluated.
 
     python benchmarks/run_ablation.py                       # every row (hours on 2 cores)
-    python benchmarks/run_ablation.py --rows default,interpolate,ddim_points
+    python benchmarks/run_ablation.py --rows default,ddim_points
     python benchmarks/write_benchmarks_md.py                # then rewrite docs/BENCHMARKS.md
     python benchmarks/run_ablation.py --steps 3000 --data data/mw_reach-v3_10_tcp \
-        --out benchmarks/results/ablation_cpu_tcp_3000.json --rows default,shift_aug   # other demos / length
+        --out benchmarks/results/ablation_cpu_tcp_3000.json --rows default,dropout_0.1   # other demos / length
 
 A training row can reuse a checkpoint trained elsewhere with the same switches, steps and demos (e.g. by
-`run_benchmark.py --train-only --train-arg rnd:--policy.image_shift_augment=6`), so one training serves both the
-validation here and, once chosen, the benchmark's test seeds: `--checkpoint shift_aug=<pretrained_model dir>`.
+`run_benchmark.py --train-only --train-arg rnd:--policy.dim_model=384`), so one training serves both the
+validation here and, once chosen, the benchmark's test seeds: `--checkpoint width_384=<pretrained_model dir>`.
 A checkpoint whose train_config.json differs from its row is refused.
 
 The evaluation env is built with the demos' cameras (and flips, image size, state layout), read from the
@@ -48,21 +48,10 @@ DATA = REPO / "data" / "mw_reach-v3_10"
 # name -> (training overrides, checkpoint of (None: its own training), sampler overrides)
 ROWS = {
     "default": ([], None, []),  # x0 point update, embeddings std 1, history RGB untouched (research code)
-    "interpolate": ([], "default", ["--policy.point_update=interpolate"]),
     "ddim_points": ([], "default", ["--policy.point_update=ddim"]),  # the paper's equation on points
-    "clean_jumps": ([], "default", ["--policy.denoise_step=clean"]),
-    "embed_std_0.02": (["--policy.embedding_init_std=0.02"], None, []),
     "history_overlay": (["--policy.history_rgb_overlay=true"], None, []),
-    "shift_aug": (["--policy.image_shift_augment=6"], None, []),  # +-6 px, principal point moved with them
     "conv_patch": (["--policy.patch_embed=conv"], None, []),  # strided-conv RGB patch embedding
-    "conv_interpolate": ([], "conv_patch", ["--policy.point_update=interpolate"]),
     "conv_ddim_points": ([], "conv_patch", ["--policy.point_update=ddim"]),
-    "shift_conv": (["--policy.image_shift_augment=6", "--policy.patch_embed=conv"], None, []),
-    # the regularisers the Diffusion Policy / research code train with, on top of the shift
-    "regularised": (["--policy.image_shift_augment=6", "--policy.use_ema=true", "--policy.dropout=0.1"], None, []),
-    "ema": (["--policy.use_ema=true"], None, []),  # evaluate an EMA of the weights (decay 0.999), as DP does
-    "ema_refine": ([], "ema", ["--policy.denoise_step=refine"]),  # the research code's inference schedule
-    "camera_dropout": (["--policy.camera_dropout=0.3"], None, []),  # a sample loses one of its 2 views w.p. 0.3
     # the paper's 16-px patches (a 8x8 grid at 128 px, against 4x4): 8 gripper patches cover what 4 of 32 px did
     "patch16": (["--policy.patch_size=16", "--policy.gripper_patches=8"], None, []),
     # today's config defaults trained again (the rows above ran under earlier defaults), and the same checkpoint
@@ -70,14 +59,7 @@ ROWS = {
     "current_defaults": ([], None, []),
     "replan_every_4": ([], "current_defaults", ["--policy.n_action_steps=4"]),
     "inference_steps_8": ([], "current_defaults", ["--policy.num_inference_steps=8"]),  # twice the denoising steps
-    # capacity on the perception side (overlapping 3x3 stride-2 conv stem) and in the transformer (width 384)
-    "conv3x3_stem": (["--policy.patch_embed=conv3x3"], None, []),
-    "width_384": (["--policy.dim_model=384"], None, []),
-    # observed frames through a ResNet-18 trunk (from scratch, GroupNorm) instead of patch-local embeddings
-    "resnet18_obs": (["--policy.obs_encoder=resnet18", "--policy.patch_size=32"], None, []),  # 32: its stride
-    # half the training samples at the sampler's pure-noise first step, where the goal must be read from the
-    # images (1 denoising step gives the same 20 episodes as 4 and 8: that first clean estimate decides)
-    "first_step_0.5": (["--policy.train_first_step_fraction=0.5"], None, []),
+    "width_384": (["--policy.dim_model=384"], None, []),  # capacity in the transformer
     # no point maps in (RGB only, renders still drawn on the future frames): is the rendered gripper's explicit 3-D
     # position a shortcut that lets the network recall demos by where the gripper is instead of reading the goal?
     "no_point_maps": (["--policy.use_point_map_input=false"], None, []),
@@ -87,9 +69,11 @@ ROWS = {
     # dropout in the transformer (ACT trains with 0.1): R&D-AI fits its demos but carries them over to new goals
     # less than ACT does
     "dropout_0.1": (["--policy.dropout=0.1"], None, []),
-    "legacy_like": (["--policy.embedding_init_std=0.02", "--policy.history_rgb_overlay=true"], None,
-                    ["--policy.point_update=ddim"]),  # fmt: skip
 }
+# Rows of switches since retired from the config (EMA, shift augmentation, camera dropout, the ResNet-18 and 3x3
+# conv encoders, the first-step training fraction, the embedding init, the "interpolate" point update, the
+# "clean"/"refine" denoising steps) stay in the archived JSON (benchmarks/results/INDEX.md); the code that ran
+# them is git tag ablation-switches-2026-12.
 
 
 def sh(argv: list[str], log: Path) -> None:
@@ -127,8 +111,8 @@ def check_reused_checkpoint(ckpt: Path, train_args: list[str], steps: int, data:
 
 # The training switches a row's checkpoint was trained with, read back from its train_config.json: the config's
 # defaults change between rows' runs (patch_embed became "conv"), so a row's overrides alone don't say what ran.
-RECORDED_SWITCHES = ("patch_size", "gripper_patches", "patch_embed", "embedding_init_std", "history_rgb_overlay",
-                     "image_shift_augment", "use_ema", "dropout", "point_update", "denoise_step")  # fmt: skip
+RECORDED_SWITCHES = ("patch_size", "gripper_patches", "patch_embed", "history_rgb_overlay", "dropout", "point_update",
+                     "dim_model", "n_obs_steps", "use_point_map_input")  # fmt: skip
 
 
 def trained_switches(ckpt: Path) -> dict:

@@ -2,7 +2,7 @@
 """Show how R&D denoises an action chunk as gripper renders in the camera images (like the paper's Figure 8).
 
 Loads a policy (``--policy-path`` of a saved checkpoint, e.g. ``outputs/train/.../pretrained_model``; without
-it an untrained tiny R&D is built on the toy embodiment of ``tests/toy_data.py`` so the script runs anywhere),
+it an untrained tiny R&D is built on the toy embodiment of ``lerobot_rnd/testing.py`` so the script runs anywhere),
 takes one observation (frame ``--frame`` of a LeRobot dataset given by ``--dataset-root``/``--repo-id``, or of
 the toy dataset generated on the fly), runs the sampler ``RnDModel.denoise(..., record=[])`` and writes
 
@@ -383,7 +383,7 @@ def main(argv=None) -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         if args.dataset_root is None:
-            from tests.toy_data import record_toy_dataset
+            from lerobot_rnd.testing import record_toy_dataset
 
             print("recording the toy dataset ...")
             root = record_toy_dataset(

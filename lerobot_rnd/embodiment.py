@@ -53,6 +53,12 @@ EMBODIMENT_KEYS = frozenset({
 EMBODIMENT_FILE_IN_DATASET = "meta/rnd_embodiment.json"
 
 
+def missing_calibrations(image_keys: Sequence[str], calibrated: Mapping[str, Any] | Sequence[str]) -> list[str]:
+    """The image keys (in order) that have no camera calibration among `calibrated` (keys or a key -> calibration
+    mapping): the one check that every camera R&D renders into is calibrated."""
+    return [key for key in image_keys if key not in calibrated]
+
+
 def _image_hw(feature: Any) -> tuple[int, int] | None:
     """(H, W) of an image feature given as a PolicyFeature (C,H,W) or a dataset feature dict (H,W,C)."""
     ftype = getattr(feature, "type", None)
@@ -178,7 +184,7 @@ class Embodiment:
         return Embodiment(**kw)
 
     def subset(self, camera_keys: Sequence[str]) -> Embodiment:
-        missing = [k for k in camera_keys if k not in self.cameras]
+        missing = missing_calibrations(camera_keys, self.cameras)
         if missing:
             raise ValueError(f"unknown camera keys {missing}; cameras: {list(self.cameras)}")
         return self._replace(
@@ -304,7 +310,7 @@ class Embodiment:
             if k not in image_feats:
                 raise ValueError(f"embodiment camera '{k}' is a feature but not an image feature")
         if require_all_cameras:
-            missing = [k for k in image_feats if k not in self.cameras]
+            missing = missing_calibrations(list(image_feats), self.cameras)
             if missing:
                 raise ValueError(
                     f"no camera calibration for image feature(s) {missing}; add a CameraCalibration for each "

@@ -20,6 +20,7 @@ from lerobot_rnd.embodiment import (
     Embodiment,
     embodiment_preset_names,
     load_embodiment,
+    missing_calibrations,
 )
 from lerobot_rnd.rendering import MeshBatch
 
@@ -35,6 +36,10 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 MESH_NAMES = ("full", "fingers")
+#: RGB colours (0-1) of the two sides of the gripper's symmetry plane (the paper's texture), and of the whole gripper
+#: when `render_texture` is off (its No-Texture ablation).
+TEXTURE_COLORS = ((1.0, 0.1, 0.1), (0.1, 0.3, 1.0))
+UNTEXTURED_COLOR = (0.6, 0.6, 0.6)
 
 
 def resolve_embodiment(config, dataset_meta=None) -> dict | None:
@@ -71,7 +76,7 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
         _validate_cameras(config)
         return None
 
-    missing = [key for key in config.image_features if key not in embodiment.cameras]
+    missing = missing_calibrations(list(config.image_features), embodiment.cameras)
     if missing:
         raise ValueError(
             f"The embodiment {embodiment.name or source!r} calibrates cameras {sorted(embodiment.cameras)}, but the "
@@ -99,7 +104,7 @@ def resolve_embodiment(config, dataset_meta=None) -> dict | None:
     meshes.setdefault("fingers", meshes["full"])
     # Texturing may split faces on the symmetry plane: the buffers hold the textured meshes.
     meshes = {
-        name: m.with_symmetry_texture(embodiment.symmetry_axis, colors=config.texture_colors)
+        name: m.with_symmetry_texture(embodiment.symmetry_axis, colors=TEXTURE_COLORS)
         for name, m in meshes.items()
     }
     config.mesh_shapes = {name: [len(m.vertices), len(m.faces)] for name, m in meshes.items()}
@@ -112,7 +117,7 @@ def _check_checkpoint_fits_inputs(config) -> None:
     evaluation, an environment's features): same cameras and the action size of its action adapter."""
     from lerobot_rnd.action_adapters import ActionAdapter
 
-    missing = [key for key in config.image_features if key not in config.cameras]
+    missing = missing_calibrations(list(config.image_features), config.cameras)
     action = config.action_feature
     try:
         adapter_dim = ActionAdapter.from_dict(config.action_adapter).action_dim if config.action_adapter else None
@@ -132,7 +137,7 @@ def _check_checkpoint_fits_inputs(config) -> None:
 
 def _validate_cameras(config) -> None:
     """Every image feature has a calibration whose size matches the feature's."""
-    missing = [key for key in config.image_features if key not in config.cameras]
+    missing = missing_calibrations(list(config.image_features), config.cameras)
     if missing:
         raise ValueError(
             f"No camera calibration for {missing}; calibrated cameras: {sorted(config.cameras)}. Calibrate them "
@@ -219,8 +224,6 @@ class MeshBuffers(nn.Module):
 
     def __init__(self, config, meshes: dict | None):
         super().__init__()
-        self.texture_colors = config.texture_colors
-        self.untextured_color = config.untextured_color
         shapes = config.mesh_shapes
         n_v = max(int(shapes[name][0]) for name in MESH_NAMES)
         n_f = max(int(shapes[name][1]) for name in MESH_NAMES)
@@ -238,7 +241,7 @@ class MeshBuffers(nn.Module):
                 faces[i, :f] = torch.as_tensor(textured.faces, dtype=torch.long)
                 face_valid[i, :f] = True
                 colors[i, :v] = torch.as_tensor(textured.vertex_colors, dtype=torch.float32)
-                plain[i, :v] = torch.tensor(config.untextured_color, dtype=torch.float32)
+                plain[i, :v] = torch.tensor(UNTEXTURED_COLOR, dtype=torch.float32)
         self.register_buffer("vertices", vertices)
         self.register_buffer("faces", faces)
         self.register_buffer("face_valid", face_valid)

@@ -7,7 +7,6 @@ Vosylius, Seo, Wang and Johns, RSS 2024 (https://arxiv.org/abs/2405.18196).
 Shapes: B batch, H observation steps, T future steps, F = H + T frames, C cameras, h x w network image size.
 """
 
-import copy
 import logging
 import warnings
 from collections import deque
@@ -21,7 +20,6 @@ from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 from torch import Tensor, nn
 
 from lerobot_rnd.action_adapters import ActionAdapter
-from lerobot_rnd.augmentation import camera_dropout_keep, drop_cameras, shift_images_and_intrinsics
 from lerobot_rnd.configuration_rnd import RnDConfig, migrate_saved_config
 from lerobot_rnd.embodiment_binding import (
     CameraRig,
@@ -34,17 +32,14 @@ from lerobot_rnd.network import RnDDenoiser, gather_patch_pixels, patch_pixel_in
 from lerobot_rnd.precision import bf16_autocast
 from lerobot_rnd.rendering import Rasterizer
 from lerobot_rnd.sampler import (
-    ddim_step,
+    DenoiserOutput,
     displacement_target,
     inference_schedule,
-    network_timesteps,
-    interpolation_step,
     make_noise_scheduler,
-    register_point_update,
+    sample_actions,
+    sampler_step,
 )
 from lerobot_rnd.statistics import MinMaxStats, estimate_rnd_statistics
-
-POINT_STEP_FUNCTIONS = {"interpolate": interpolation_step, "ddim": ddim_step}
 
 logger = logging.getLogger(__name__)
 
@@ -129,7 +124,7 @@ class RnDPolicy(PreTrainedPolicy):
             cfg = model.config
             raise ValueError(
                 f"R&D checkpoint {checkpoint}: model.safetensors does not fit its config.json (variant "
-                f"{cfg.variant!r}, dim_model {cfg.dim_model}, n_layers {cfg.n_layers}, use_ema {cfg.use_ema}): "
+                f"{cfg.variant!r}, dim_model {cfg.dim_model}, n_layers {cfg.n_layers}): "
                 f"{len(missing)} tensor(s) missing (e.g. {missing[:3]}), {len(unexpected)} unexpected (e.g. "
                 f"{unexpected[:3]}). The two files come from different runs: copy config.json and "
                 "model.safetensors from the same checkpoint folder."
@@ -154,10 +149,6 @@ class RnDPolicy(PreTrainedPolicy):
 
     def get_optim_params(self) -> dict:
         return self.model.network.parameters()
-
-    def update(self) -> None:
-        """Called by lerobot-train after every optimiser step: update the EMA weights (if `use_ema`)."""
-        self.model.update_ema()
 
     def reset(self):
         """Clear observation and action queues. Call on `env.reset()`."""
@@ -316,8 +307,7 @@ class RnDModel(nn.Module):
         self.action_adapter = ActionAdapter.from_dict(dict(config.action_adapter))
         self._check_action_dim()
         t = config.chunk_size
-        action_shape = (t, 6) if config.per_horizon_action_normalization else (6,)
-        self.action_stats = MinMaxStats(action_shape)
+        self.action_stats = MinMaxStats((6,))  # the 6-D action, normalised jointly over the horizon
         self.displacement_stats = MinMaxStats((len(self.camera_keys), 3, 1, 1))
 
         self.patch_grid = (config.image_size[0] // config.patch_size, config.image_size[1] // config.patch_size)
@@ -338,18 +328,12 @@ class RnDModel(nn.Module):
             predict_action=self.predict_action,
             use_point_map_input=config.use_point_map_input,
             gripper_patches=config.gripper_patches,
-            embedding_init_std=config.embedding_init_std,
             patch_embed=config.patch_embed,
-            obs_encoder=config.obs_encoder,
         )
-        self.ema_network = None
-        if config.use_ema:
-            self.ema_network = copy.deepcopy(self.network).requires_grad_(False)
-            self.register_buffer("ema_updates", torch.zeros((), dtype=torch.long))
         # BCE weight of the "closed" class: open/closed ratio of the dataset's gripper targets.
         self.register_buffer("gripper_pos_weight", torch.ones(()))
         self._warned_invisible = False
-        self.noise_scheduler = make_noise_scheduler(config.num_train_timesteps, config.beta_schedule)
+        self.noise_scheduler = make_noise_scheduler(config.num_train_timesteps)
         self.register_buffer(
             "alphas_cumprod", self.noise_scheduler.alphas_cumprod.float().clone(), persistent=False
         )
@@ -357,7 +341,6 @@ class RnDModel(nn.Module):
             self.noise_scheduler, config.num_inference_steps
         )
         self.inference_timesteps = timesteps
-        self.network_timesteps = network_timesteps(timesteps, config.denoise_step)  # told to the network
         self.register_buffer("inference_alpha_bar", alpha_bar, persistent=False)
         self.register_buffer("inference_alpha_bar_prev", alpha_bar_prev, persistent=False)
         self._compiled_sampler = None
@@ -390,7 +373,20 @@ class RnDModel(nn.Module):
     # Statistics.
     def fit_statistics(self, dataset_meta) -> None:
         """Estimate the min/max of the action-space and image-space targets from the dataset on disk."""
-        stats = estimate_rnd_statistics(self, dataset_meta)
+        cfg = self.config
+        stats = estimate_rnd_statistics(
+            dataset_meta.root,
+            n_obs_steps=cfg.n_obs_steps,
+            chunk_size=cfg.chunk_size,
+            num_samples=cfg.stats_num_samples,
+            n_cameras=len(self.camera_keys),
+            image_size=cfg.image_size,
+            ee_pose=self.ee_reader.pose,
+            gripper_state=self.ee_reader.gripper,
+            to_rnd=self.action_adapter.to_rnd,
+            noisy_sample_targets=self.noisy_sample_targets,
+            device=self.action_stats.min.device,
+        )
         self.action_stats.set(stats["action_min"], stats["action_max"])
         self.displacement_stats.set(stats["displacement_min"], stats["displacement_max"])
         self.gripper_pos_weight.fill_(float(stats["gripper_pos_weight"]))
@@ -402,27 +398,6 @@ class RnDModel(nn.Module):
     def unnormalize_displacement(self, x: Tensor) -> Tensor:
         """Inverse of `normalize_displacement`."""
         return self.displacement_stats.unnormalize(x[..., None]).squeeze(-1)
-
-    # ------------------------------------------------------------------------------------------------
-    # EMA.
-    @torch.no_grad()
-    def update_ema(self) -> None:
-        """One EMA step of the network weights, decay min(ema_decay, (1 + n) / (10 + n))."""
-        if self.ema_network is None:
-            return
-        n = float(self.ema_updates)
-        decay = min(self.config.ema_decay, (1.0 + n) / (10.0 + n))
-        ema_params = list(self.ema_network.parameters())
-        params = [p.detach() for p in self.network.parameters()]
-        torch._foreach_lerp_(ema_params, params, 1.0 - decay)
-        self.ema_updates += 1
-
-    @property
-    def sampling_network(self) -> nn.Module:
-        """The EMA network at evaluation when `use_ema`, else the trained one."""
-        if self.ema_network is not None and not self.training:
-            return self.ema_network
-        return self.network
 
     def _autocast(self, device_type: str):
         """bf16 autocast for the network when `autocast_bf16` and the device runs bf16 natively (precision.py)."""
@@ -452,12 +427,11 @@ class RnDModel(nn.Module):
 
     # ------------------------------------------------------------------------------------------------
     # Rendering.
-    def render_frames(self, T_world_ee_frames: Tensor, T_world_ee_images: Tensor, K: Tensor | None = None):
+    def render_frames(self, T_world_ee_frames: Tensor, T_world_ee_images: Tensor):
         """Render the gripper for every frame and camera in one call.
 
         T_world_ee_frames: (B, F, 4, 4) where the gripper is drawn; T_world_ee_images: (B, F, 4, 4) the EE pose
-        when the frame's image was taken (moves the cameras mounted on the EE); K: per-sample intrinsics
-        (B, C, 3, 3) (shift augmentation), default the calibration's.
+        when the frame's image was taken (moves the cameras mounted on the EE).
         Returns rgb (B, F, C, 3, h, w), mask (B, F, C, h, w), points (B, F, C, 3, h, w) camera frame,
         T_cam_obj (B, F, C, 4, 4), T_world_cam (B, F, C, 4, 4).
         """
@@ -471,7 +445,7 @@ class RnDModel(nn.Module):
             out = self.rasterizer(static)(
                 self.rig.mesh_index.expand(b, f, c).reshape(n),
                 T_cam_obj.reshape(n, 4, 4).float(),
-                (self.rig.K if K is None else K[:, None]).expand(b, f, c, 3, 3).reshape(n, 3, 3),
+                self.rig.K.expand(b, f, c, 3, 3).reshape(n, 3, 3),
                 dynamic=not static,
             )
         if static:
@@ -485,26 +459,22 @@ class RnDModel(nn.Module):
             T_world_cam,
         )
 
-    def render_history(self, images: Tensor, T_world_ee: Tensor, K: Tensor | None = None) -> dict:
+    def render_history(self, images: Tensor, T_world_ee: Tensor) -> dict:
         """The past/current frames' network inputs (they do not depend on the noisy actions: the sampler renders
         them once per chunk). images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4) -> {obs_rgb, obs_points}
         (B, H, C, 3, h, w): the images (with the gripper pasted over them when `history_rgb_overlay`) and the
-        scaled camera-frame point maps of the gripper at the past/current poses (zeros if not `render_history`)."""
-        cfg = self.config
-        if not cfg.render_history:
-            return {"obs_rgb": images, "obs_points": torch.zeros_like(images)}
-        rgb_r, mask, points, _, _ = self.render_frames(T_world_ee, T_world_ee, K)
-        obs_rgb = torch.where(mask[:, :, :, None], rgb_r, images) if cfg.history_rgb_overlay else images
-        return {"obs_rgb": obs_rgb, "obs_points": points / cfg.point_map_scale}
+        camera-frame point maps (metres) of the gripper at the past/current poses."""
+        rgb_r, mask, points, _, _ = self.render_frames(T_world_ee, T_world_ee)
+        obs_rgb = torch.where(mask[:, :, :, None], rgb_r, images) if self.config.history_rgb_overlay else images
+        return {"obs_rgb": obs_rgb, "obs_points": points}
 
     def _network_inputs(
-        self, images, T_world_ee, gripper, T_ee_future, full_composite: bool = False, history: dict | None = None,
-        K: Tensor | None = None,
+        self, images, T_world_ee, gripper, T_ee_future, full_composite: bool = False, history: dict | None = None
     ) -> dict:
         """Render the current noisy actions and build the network's inputs.
 
         images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), T_ee_future (B, T, 4, 4) = T_ee_target; `history`:
-        `render_history(images, T_world_ee)` if already computed; K (B, C, 3, 3) per-sample intrinsics or None.
+        `render_history(images, T_world_ee)` if already computed.
         Returns a dict:
             obs_rgb, obs_points (B, H, C, 3, h, w); future_rgb, future_points (B, T, C, 3, h, w), or the selected
                 patches' pixels (B, T, C, 3, N = K*p*p) with `gripper_patches` > 0: the network's inputs;
@@ -518,10 +488,10 @@ class RnDModel(nn.Module):
         b = T_world_ee.shape[0]
         t = T_ee_future.shape[1]
         if history is None:
-            history = self.render_history(images, T_world_ee, K)
+            history = self.render_history(images, T_world_ee)
         T_world_ee_now = T_world_ee[:, -1:]
         fut_rgb_r, fut_mask, fut_points, T_cam_obj, T_world_cam = self.render_frames(
-            T_world_ee_now @ T_ee_future, T_world_ee_now.expand(b, t, 4, 4), K
+            T_world_ee_now @ T_ee_future, T_world_ee_now.expand(b, t, 4, 4)
         )
         obs_rgb, obs_points = history["obs_rgb"], history["obs_points"]
         current = images[:, -1:].expand(-1, t, -1, -1, -1, -1)
@@ -545,7 +515,7 @@ class RnDModel(nn.Module):
             "obs_points": obs_points,
             "obs_tokens": history.get("obs_tokens"),
             "future_rgb": future_rgb,
-            "future_points": future_points / cfg.point_map_scale,
+            "future_points": future_points,
             "patch_index": patch_index,
             "target_points": target_points,
             "target_mask": target_mask,
@@ -571,31 +541,28 @@ class RnDModel(nn.Module):
 
     def noisy_sample_targets(
         self, images: Tensor, T_world_ee: Tensor, gripper: Tensor, T_ee_target: Tensor, generator=None,
-        K: Tensor | None = None,
+        action_stats: MinMaxStats | None = None,
     ) -> dict:
-        """Noise a ground-truth chunk, render it, and compute the training targets (used by training and by
-        the statistics estimate).
+        """Noise a ground-truth chunk (Eq. 1), render it, and compute the training targets (Algorithm 1; used by
+        training and by the statistics estimate).
 
-        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper (B, H), T_ee_target (B, T, 4, 4); K
-        (B, C, 3, 3) per-sample intrinsics of shifted images, or None.
+        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper (B, H), T_ee_target (B, T, 4, 4);
+        action_stats: the action normalisation to noise in (default the model's own).
         Returns the `_network_inputs` dict plus k (B,), a_gt / a_noisy (B, T, 6) normalised, and
-        displacement (B, T, C, 3, N): the metric image-space target F_gt = T(a_gt, a_noisy) P - P at the
+        displacement (B, T, C, 3, N): the metric image-space target F_gt = T(a_gt, a_noisy) P - P (Eq. 6) at the
         predicted pixels (meaningful on `target_mask`).
         """
         cfg = self.config
+        stats = self.action_stats if action_stats is None else action_stats
         b = T_ee_target.shape[0]
         device = T_ee_target.device
-        a_gt = self.action_stats.normalize(action_from_pose(T_ee_target))
-        k = torch.randint(0, cfg.num_train_timesteps, (b,), generator=generator, device="cpu")
-        if cfg.train_first_step_fraction > 0:  # the sampler's pure-noise start, where the images decide
-            first = torch.rand((b,), generator=generator, device="cpu") < cfg.train_first_step_fraction
-            k = torch.where(first, torch.as_tensor(int(self.inference_timesteps[0])), k)
-        k = k.to(device)
+        a_gt = stats.normalize(action_from_pose(T_ee_target))
+        k = torch.randint(0, cfg.num_train_timesteps, (b,), generator=generator, device="cpu").to(device)
         eps = torch.randn(a_gt.shape, generator=generator, device="cpu").to(device)
         a_noisy = self.noise_scheduler.add_noise(a_gt, eps, k).clamp(-1, 1)
-        T_ee_noisy = pose_from_action(self.action_stats.unnormalize(a_noisy))
+        T_ee_noisy = pose_from_action(stats.unnormalize(a_noisy))
         with torch.no_grad():
-            inputs = self._network_inputs(images, T_world_ee, gripper, T_ee_noisy, K=K)
+            inputs = self._network_inputs(images, T_world_ee, gripper, T_ee_noisy)
             T_world_cam = inputs["T_world_cam"]
             T_cam_target = invert_transform(T_world_cam) @ (T_world_ee[:, -1:, None] @ T_ee_target[:, :, None])
             displacement = displacement_target(inputs["target_points"], inputs["T_cam_obj"], T_cam_target)
@@ -606,7 +573,7 @@ class RnDModel(nn.Module):
     def compute_loss(
         self, images: Tensor, state: Tensor, action: Tensor, action_is_pad: Tensor | None
     ) -> tuple[Tensor, dict]:
-        """R&D training loss: L1 image-space displacement + L1 action-space update + BCE gripper."""
+        """R&D training loss, Eq. (5): L1 image-space displacement + L1 action-space update + BCE gripper."""
         self.meshes.check_loaded()
         cfg = self.config
         if action.shape[1] != cfg.chunk_size:
@@ -616,13 +583,7 @@ class RnDModel(nn.Module):
         images, T_world_ee, gripper = self.prepare_observation(images, state)
         b, t = action.shape[:2]
         T_ee_target, gripper_target = self.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
-        K = None
-        if self.training and cfg.image_shift_augment > 0:
-            images, K = shift_images_and_intrinsics(images, self.rig.K, cfg.image_shift_augment)
-        sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target, K=K)
-        if self.training and cfg.camera_dropout > 0:
-            keep = camera_dropout_keep(b, images.shape[2], cfg.camera_dropout, device=images.device)
-            sample = drop_cameras(sample, keep)
+        sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target)
         a_gt, a_noisy = sample["a_gt"], sample["a_noisy"]
         displacement, update, logits = self._run_network(self.network, sample, gripper, sample["k"], a_noisy)
 
@@ -640,95 +601,82 @@ class RnDModel(nn.Module):
             per_cam_err = ((displacement - target).abs() * pix).sum((0, 1, 3, 4))  # (C,)
             per_cam_n = 3 * pix.sum((0, 1, 3, 4))
             image_loss = (per_cam_err / per_cam_n.clamp_min(1.0)).sum()
-            loss = loss + cfg.image_loss_weight * image_loss
+            loss = loss + image_loss
             loss_dict["image_loss"] = image_loss.item()
         if update is not None:
             action_loss = ((update - (a_gt - a_noisy)).abs().mean(-1) * valid_f).sum() / valid_f.sum().clamp_min(1)
-            loss = loss + cfg.action_loss_weight * action_loss
+            loss = loss + action_loss
             loss_dict["action_loss"] = action_loss.item()
         gripper_bce = F.binary_cross_entropy_with_logits(
             logits, (gripper_target > 0).float(), reduction="none", pos_weight=self.gripper_pos_weight
         )
         gripper_loss = (gripper_bce * valid_f).sum() / valid_f.sum().clamp_min(1)
-        loss = loss + cfg.gripper_loss_weight * gripper_loss
+        loss = loss + gripper_loss
         loss_dict["gripper_loss"] = gripper_loss.item()
         return loss, loss_dict
 
     # ------------------------------------------------------------------------------------------------
     # Inference.
-    def denoise(self, images, T_world_ee, gripper, noise: Tensor, record: list | None = None):
-        """The R&D sampler: `num_inference_steps` steps (`sampler_step`), then an optional final action-space
-        pass. Returns (a_0 normalised (B, T, 6), gripper logits (B, T)).
+    def denoiser(self, images, T_world_ee, gripper, history: dict | None = None):
+        """The callable the sampler (`lerobot_rnd.sampler`) denoises with: it renders the actions it is given
+        into the observation and runs the network. images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper
+        (B, H); `history`: `render_history(images, T_world_ee)` (with "obs_tokens") if already computed."""
 
-        If `record` is a list, the composite images of every step are appended to it (for visualisation).
-        """
-        a = noise
-        logits = None
-        history = self.render_history(images, T_world_ee)  # the same for every step, and so are its tokens:
-        with self._autocast(images.device.type):
-            history["obs_tokens"] = self.sampling_network.embed_observation(history["obs_rgb"], history["obs_points"])
-        for i in range(len(self.inference_timesteps)):
-            a, logits, composite = self.sampler_step(
-                images, T_world_ee, gripper, a, i, full_composite=record is not None, history=history
-            )
-            if record is not None:
-                record.append(composite)
-        a = a.clamp(-1, 1)
-        if self.config.final_action_step and self.predict_action:
-            b = a.shape[0]
-            T_ee = pose_from_action(self.action_stats.unnormalize(a))
+        def denoise_fn(a: Tensor, T_ee_target: Tensor, timestep: Tensor, full_composite: bool) -> DenoiserOutput:
             inputs = self._network_inputs(
-                images, T_world_ee, gripper, T_ee, full_composite=record is not None, history=history
+                images, T_world_ee, gripper, T_ee_target, full_composite=full_composite, history=history
             )
-            if record is not None:
-                record.append(inputs["composite"])
-            timestep = torch.zeros((b,), device=a.device, dtype=torch.long)
-            _, update, logits = self._run_network(self.sampling_network, inputs, gripper, timestep, a)
-            a = (a + update).clamp(-1, 1)
-        return a, logits
-
-    def sampler_step(
-        self, images, T_world_ee, gripper, a: Tensor, i: int, full_composite: bool = False, history: dict | None = None
-    ):
-        """Step i of the sampler: render the actions a (B, T, 6, normalised), predict, update.
-
-        Returns (a_next (B, T, 6), gripper logits (B, T), composite images (B, F, C, 3, h, w) when
-        `full_composite`, else None). The clean estimate x0 comes from
-        the image space where at least `min_visible_points` rendered pixels are predicted (variants I, AI),
-        else from the action space (A, AI; the current action for I); see `point_update` and `denoise_step`.
-        """
-        cfg = self.config
-        b = a.shape[0]
-        a = a.clamp(-1, 1)
-        T_ee = pose_from_action(self.action_stats.unnormalize(a))
-        inputs = self._network_inputs(images, T_world_ee, gripper, T_ee, full_composite=full_composite, history=history)
-        timestep = torch.full((b,), self.network_timesteps[i], device=a.device, dtype=torch.long)
-        displacement, update, logits = self._run_network(self.sampling_network, inputs, gripper, timestep, a)
-        alpha = self.inference_alpha_bar[i]
-        alpha_prev = self.inference_alpha_bar_prev[i] if cfg.denoise_step == "ddim" else torch.ones_like(alpha)
-        x0_action = (a + update).clamp(-1, 1) if update is not None else a
-        a_next = ddim_step(a, x0_action, alpha, alpha_prev)
-        if displacement is not None:
-            p_k = inputs["target_points"].float()
-            p0 = p_k + self.unnormalize_displacement(displacement)
-            if cfg.point_update == "x0":
-                p_target = p0
-            else:
-                p_target = POINT_STEP_FUNCTIONS[cfg.point_update](p_k, p0, alpha, alpha_prev)
-            T_world_cam = inputs["T_world_cam"]
-            T_delta, valid = register_point_update(
-                p_k, p_target, inputs["target_mask"], T_world_cam, cfg.min_visible_points
+            displacement, update, logits = self._run_network(self.network, inputs, gripper, timestep, a)
+            return DenoiserOutput(
+                update=update,
+                logits=logits,
+                displacement=None if displacement is None else self.unnormalize_displacement(displacement),
+                points=inputs["target_points"],
+                mask=inputs["target_mask"],
+                T_world_cam=inputs["T_world_cam"],
+                composite=inputs.get("composite"),
             )
+
+        return denoise_fn
+
+    def denoise(self, images, T_world_ee, gripper, noise: Tensor, record: list | None = None):
+        """Sample a chunk from `noise` (B, T, 6) with `lerobot_rnd.sampler.sample_actions`: the past/current
+        frames are rendered and tokenised once, every step renders the current actions. Returns (a_0 normalised
+        (B, T, 6), gripper logits (B, T)); `record`, a list, receives the composite images of every pass."""
+        history = self.render_history(images, T_world_ee)  # the same for every step, and so are its tokens
+        with self._autocast(images.device.type):
+            history["obs_tokens"] = self.network.embed_observation(history["obs_rgb"], history["obs_points"])
+        return sample_actions(
+            self.denoiser(images, T_world_ee, gripper, history),
+            noise,
+            self.inference_timesteps,
+            self.inference_alpha_bar,
+            self.inference_alpha_bar_prev,
+            self.action_stats,
+            T_world_ee[:, -1:],
+            point_update=self.config.point_update,
+            final_action_step=self.config.final_action_step and self.predict_action,
+            on_visibility=self._warn_if_never_visible,
+            record=record,
+        )
+
+    def sampler_step(self, images, T_world_ee, gripper, a: Tensor, i: int, full_composite: bool = False):
+        """Step i of the sampler alone (`lerobot_rnd.sampler.sampler_step`), for inspection: returns (a_next
+        (B, T, 6), gripper logits (B, T), composite images (B, F, C, 3, h, w) when `full_composite`, else None)."""
+        a_next, logits, valid, composite = sampler_step(
+            self.denoiser(images, T_world_ee, gripper),
+            a,
+            self.inference_timesteps[i],
+            self.inference_alpha_bar[i],
+            self.inference_alpha_bar_prev[i],
+            self.action_stats,
+            T_world_ee[:, -1:],
+            self.config.point_update,
+            full_composite=full_composite,
+        )
+        if valid is not None:
             self._warn_if_never_visible(valid)
-            T_world_ee_now = T_world_ee[:, -1:]
-            # T_ee_moved = T_world_ee_now^-1 T_delta T_world_ee_now T_ee, composed in float64 for precision.
-            T_now = T_world_ee_now.double()
-            T_ee_moved = (invert_transform(T_now) @ T_delta.double() @ T_now @ T_ee.double()).float()
-            a_image = self.action_stats.normalize(action_from_pose(T_ee_moved))
-            if cfg.point_update == "x0":
-                a_image = ddim_step(a, a_image.clamp(-1, 1), alpha, alpha_prev)
-            a_next = torch.where(valid[..., None], a_image, a_next)
-        return a_next, logits, inputs.get("composite")
+        return a_next, logits, composite
 
     def _warn_if_never_visible(self, valid: Tensor) -> None:
         """Warn once when the gripper is invisible in every camera for a whole chunk (eager mode only)."""

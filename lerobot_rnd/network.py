@@ -12,6 +12,10 @@ from torch import Tensor, nn
 
 from lerobot_rnd.configuration_rnd import PATCH_EMBEDS
 
+#: Standard deviation of the initial frame, view, future-step and register embeddings (the authors use 1 and report
+#: that small values work much worse).
+EMBEDDING_INIT_STD = 1.0
+
 
 def sincos_2d_position_embedding(grid_h: int, grid_w: int, dim: int) -> Tensor:
     """Fixed 2-D sine-cosine patch position embedding (MAE style). Returns (grid_h * grid_w, dim)."""
@@ -95,12 +99,10 @@ def patch_embedding(kind: str, n_views: int, out_per_view: int, patch_size: int)
     in_ch = 3 * n_views
     if kind == "linear":
         return nn.Conv2d(in_ch, n_views * out_per_view, patch_size, patch_size, groups=n_views)
-    if kind not in ("conv", "conv3x3") or patch_size % 8:
-        raise ValueError(f"patch_embed must be one of {PATCH_EMBEDS} ('conv' and 'conv3x3' need a patch_size "
-                         f"divisible by 8), got {kind!r} with patch_size {patch_size}")  # fmt: skip
+    if kind != "conv" or patch_size % 8:
+        raise ValueError(f"patch_embed must be one of {PATCH_EMBEDS} ('conv' needs a patch_size divisible by 8), "
+                         f"got {kind!r} with patch_size {patch_size}")  # fmt: skip
     c1, c2 = max(out_per_view // 4, 8), max(out_per_view // 2, 8)
-    if kind == "conv3x3":
-        return PatchLocalConvStem(n_views, c1, c2, out_per_view, patch_size)
     return nn.Sequential(
         nn.Conv2d(in_ch, n_views * c1, 4, 4, groups=n_views),
         nn.GELU(),
@@ -108,61 +110,6 @@ def patch_embedding(kind: str, n_views: int, out_per_view: int, patch_size: int)
         nn.GELU(),
         nn.Conv2d(n_views * c2, n_views * out_per_view, patch_size // 8, patch_size // 8, groups=n_views),
     )
-
-
-class PatchLocalConvStem(nn.Module):
-    """Overlapping 3x3 convolutions, stride 2, three times (p -> p/8), then a (p/8)x(p/8) one to a token: the
-    convolutional stem of "Early Convolutions Help Transformers See Better" (Xiao et al., 2021), run on each
-    p x p patch on its own (zero padding at the patch border), so a token still depends only on its own
-    patch's pixels and selected gripper patches embed exactly as in the full image.
-
-    (N, C*3, h, w) -> (N, C*out_per_view, h/p, w/p), grouped over the C views.
-    """
-
-    def __init__(self, n_views: int, c1: int, c2: int, out_per_view: int, patch_size: int):
-        super().__init__()
-        self.patch_size = patch_size
-        g = n_views
-        self.layers = nn.Sequential(
-            nn.Conv2d(3 * g, g * c1, 3, 2, padding=1, groups=g),
-            nn.GELU(),
-            nn.Conv2d(g * c1, g * c2, 3, 2, padding=1, groups=g),
-            nn.GELU(),
-            nn.Conv2d(g * c2, g * c2, 3, 2, padding=1, groups=g),
-            nn.GELU(),
-            nn.Conv2d(g * c2, g * out_per_view, patch_size // 8, patch_size // 8, groups=g),
-        )
-        # He initialisation keeps the activations' scale through the four layers (PyTorch's default shrinks
-        # their variance about 3x per layer, which leaves the stem nearly linear at the start of training).
-        for layer in self.layers:
-            if isinstance(layer, nn.Conv2d):
-                nn.init.kaiming_normal_(layer.weight, nonlinearity="relu")
-                nn.init.zeros_(layer.bias)
-
-    def forward(self, images: Tensor) -> Tensor:
-        n, ch, h, w = images.shape
-        p = self.patch_size
-        gh, gw = h // p, w // p
-        patches = images.reshape(n, ch, gh, p, gw, p).permute(0, 2, 4, 1, 3, 5).reshape(n * gh * gw, ch, p, p)
-        tokens = self.layers(patches)  # (N*gh*gw, C*out, 1, 1)
-        return tokens.reshape(n, gh, gw, -1).permute(0, 3, 1, 2)
-
-
-class ResNetObservationEncoder(nn.Module):
-    """ResNet-18 trunk (random init, GroupNorm instead of BatchNorm as Diffusion Policy uses without pretrained
-    weights), shared by the views, then a 1x1 convolution to the token width: (N, 3, h, w) in [-1, 1] ->
-    (N, out_dim, h/32, w/32). Unlike the patch embeddings its tokens see beyond their own 32-px cell."""
-
-    def __init__(self, out_dim: int):
-        super().__init__()
-        import torchvision
-
-        trunk = torchvision.models.resnet18(weights=None, norm_layer=lambda c: nn.GroupNorm(c // 16, c))
-        self.trunk = nn.Sequential(*list(trunk.children())[:-2])  # drop the pooling and the classifier
-        self.proj = nn.Conv2d(512, out_dim, 1)
-
-    def forward(self, images: Tensor) -> Tensor:
-        return self.proj(self.trunk(images))
 
 
 class RnDDenoiser(nn.Module):
@@ -205,9 +152,7 @@ class RnDDenoiser(nn.Module):
         predict_action: bool,
         use_point_map_input: bool,
         gripper_patches: int = 0,
-        embedding_init_std: float = 0.02,
         patch_embed: str = "linear",
-        obs_encoder: str = "patch",
     ):
         super().__init__()
         self.n_views = n_views
@@ -230,13 +175,6 @@ class RnDDenoiser(nn.Module):
         # (smooth, rendered) always takes the linear one.
         in_ch = 3 * n_views
         self.rgb_patch_embed = patch_embedding(patch_embed, n_views, d // 2, patch_size)
-        self.obs_rgb_encoder = None
-        if obs_encoder == "resnet18":
-            if patch_size != 32:
-                raise ValueError(f"obs_encoder='resnet18' needs patch_size=32 (its stride), got {patch_size}")
-            self.obs_rgb_encoder = ResNetObservationEncoder(d // 2)
-        elif obs_encoder != "patch":
-            raise ValueError(f"obs_encoder must be 'patch' or 'resnet18', got {obs_encoder!r}")
         self.point_patch_embed = (
             nn.Conv2d(in_ch, n_views * d // 2, patch_size, patch_size, groups=n_views)
             if use_point_map_input
@@ -266,7 +204,7 @@ class RnDDenoiser(nn.Module):
             nn.Sequential(nn.Linear(d, d), nn.GELU(), nn.Linear(d, 6)) if predict_action else None
         )
         for p in (self.frame_embed, self.view_embed, self.register_token, self.future_pos_embed):
-            nn.init.normal_(p, std=embedding_init_std)
+            nn.init.normal_(p, std=EMBEDDING_INIT_STD)
         if self.image_head is not None:
             # Start from "no displacement" so early training is stable.
             nn.init.zeros_(self.image_head.weight)
@@ -361,16 +299,7 @@ class RnDDenoiser(nn.Module):
     def embed_observation(self, obs_rgb: Tensor, obs_points: Tensor) -> Tensor:
         """Past/current frames (B, H, C, 3, h, w) each -> their patch tokens (B, H, C, P, D), with the patch
         position embedding (frame and view embeddings are added in `forward`)."""
-        if self.obs_rgb_encoder is None:
-            return self._embed_frames(obs_rgb, obs_points, sparse=False) + self.patch_pos_embed[None, None, None]
-        b, f, c, _, h, w = obs_rgb.shape
-        rgb = self.obs_rgb_encoder((obs_rgb * 2.0 - 1.0).reshape(b * f * c, 3, h, w))  # (B*H*C, D/2, gh, gw)
-        rgb_tokens = rgb.flatten(2).transpose(1, 2).reshape(b, f, c, self.n_patches, -1)
-        if self.point_patch_embed is None:
-            point_tokens = torch.zeros_like(rgb_tokens)
-        else:
-            point_tokens = self._patchify(obs_points, self.point_patch_embed)
-        return torch.cat([rgb_tokens, point_tokens], dim=-1) + self.patch_pos_embed[None, None, None]
+        return self._embed_frames(obs_rgb, obs_points, sparse=False) + self.patch_pos_embed[None, None, None]
 
     def _embed_frames(self, rgb: Tensor, points: Tensor, sparse: bool) -> Tensor:
         """Images and point maps (B, F', C, 3, h, w), or selected pixels (B, F', C, 3, K*p*p) when `sparse`
@@ -430,12 +359,3 @@ def select_gripper_patches(mask: Tensor, patch_size: int, k: int) -> Tensor:
     # Stable tie-break towards lower patch numbers without a data-dependent sort.
     score = counts * n + (n - 1 - torch.arange(n, device=mask.device, dtype=counts.dtype))
     return torch.topk(score, k, dim=-1).indices.sort(dim=-1).values
-
-
-def patch_coverage(patch_index: Tensor, grid: tuple[int, int], patch_size: int) -> Tensor:
-    """Pixels inside the selected patches: patch_index (..., K) -> (..., h, w) bool."""
-    gh, gw = grid
-    p = patch_size
-    flags = torch.zeros(*patch_index.shape[:-1], gh * gw, dtype=torch.bool, device=patch_index.device)
-    flags = flags.scatter(-1, patch_index, True).reshape(*patch_index.shape[:-1], gh, 1, gw, 1)
-    return flags.expand(*patch_index.shape[:-1], gh, p, gw, p).reshape(*patch_index.shape[:-1], gh * p, gw * p)

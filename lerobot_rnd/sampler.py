@@ -1,18 +1,32 @@
-"""Diffusion pieces of R&D: noise schedule, training targets, and the DDIM + SVD update.
+"""The diffusion side of R&D: noise schedule, training targets, and the whole sampling loop.
 
-Everything here is batched and free of host synchronisation (no `.item()`, no data-dependent shapes), so
-the inference loop can be captured by `torch.compile` / CUDA graphs.
+Equation numbers are the paper's (Vosylius et al., "Render and Diffuse", RSS 2024): (1) the forward diffusion,
+(6) the image-space target F_gt = T(a_gt, a_noisy) P - P, (7) the DDIM step on the rendered gripper's points,
+(8) the rigid registration of two point clouds by SVD (Arun et al.). Sec. IV-D describes the inference loop that
+`sample_actions` implements; the paper's Sec. IV-B (R&D-AI) the fallback to, and final pass in, action space.
+
+The model supplies one callable, `denoise_fn(a, T_ee_target, timestep, full_composite) -> DenoiserOutput`: render
+the gripper at the actions, run the network. Everything here is batched and free of host synchronisation (no
+`.item()`, no data-dependent shapes), so the loop can be captured by `torch.compile` / CUDA graphs.
 """
+
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import torch
 from diffusers.schedulers.scheduling_ddim import DDIMScheduler
 from torch import Tensor
 
-from lerobot_rnd.geometry import invert_transform, rigid_transform_from_moments
+from lerobot_rnd.geometry import action_from_pose, invert_transform, pose_from_action, rigid_transform_from_moments
+
+#: The noise schedule (diffusers' name): squared cosine, as the authors' research code.
+BETA_SCHEDULE = "squaredcos_cap_v2"
+#: Fewer visible rendered pixels than this over all cameras make a step fall back to the action-space update.
+MIN_VISIBLE_POINTS = 3
 
 
-def make_noise_scheduler(num_train_timesteps: int, beta_schedule: str) -> DDIMScheduler:
-    """DDIM scheduler predicting the clean sample, as in the research implementation.
+def make_noise_scheduler(num_train_timesteps: int) -> DDIMScheduler:
+    """DDIM scheduler predicting the clean sample, as in the research implementation; `add_noise` is Eq. (1).
 
     "trailing" timestep spacing makes the first inference step k = K - 1, where the sample is pure noise
     (diffusers' default "leading" spacing would start at K - K/S, telling the network the noise is smaller
@@ -20,7 +34,7 @@ def make_noise_scheduler(num_train_timesteps: int, beta_schedule: str) -> DDIMSc
     """
     return DDIMScheduler(
         num_train_timesteps=num_train_timesteps,
-        beta_schedule=beta_schedule,
+        beta_schedule=BETA_SCHEDULE,
         prediction_type="sample",
         clip_sample=False,
         set_alpha_to_one=True,
@@ -41,16 +55,8 @@ def inference_schedule(scheduler: DDIMScheduler, num_inference_steps: int) -> tu
     return timesteps, alpha_bar.float(), torch.stack(prev).float()
 
 
-def network_timesteps(timesteps: list[int], denoise_step: str) -> list[int]:
-    """The timestep the network is told at each sampler step: the schedule's own, or for "refine" (clean jumps
-    after a first step from pure noise) the first one, then len - 2, ..., 0: the input is nearly clean by then."""
-    if denoise_step != "refine":
-        return list(timesteps)
-    return [timesteps[0]] + list(range(len(timesteps) - 2, -1, -1))
-
-
 def ddim_step(x_k: Tensor, x0_hat: Tensor, alpha_bar: Tensor, alpha_bar_prev: Tensor) -> Tensor:
-    """Deterministic DDIM update x_k -> x_{k-1} from the predicted clean sample (eta = 0).
+    """Deterministic DDIM update x_k -> x_{k-1} from the predicted clean sample (eta = 0); Eq. (7) for points.
 
     x_{k-1} = sqrt(a_{k-1}) x0 + sqrt((1 - a_{k-1}) / (1 - a_k)) (x_k - sqrt(a_k) x0).
     `alpha_bar` and `alpha_bar_prev` are scalars or broadcastable tensors.
@@ -59,17 +65,8 @@ def ddim_step(x_k: Tensor, x0_hat: Tensor, alpha_bar: Tensor, alpha_bar_prev: Te
     return torch.sqrt(alpha_bar_prev) * x0_hat + c_eps * (x_k - torch.sqrt(alpha_bar) * x0_hat)
 
 
-def interpolation_step(x_k: Tensor, x0_hat: Tensor, alpha_bar: Tensor, alpha_bar_prev: Tensor) -> Tensor:
-    """Translation-equivariant variant of `ddim_step` for metric points: moves x_k towards x0_hat by the
-    same fraction as DDIM does, without DDIM's rescaling about the origin (the camera centre for points)."""
-    c_eps = torch.sqrt((1.0 - alpha_bar_prev) / (1.0 - alpha_bar).clamp_min(1e-12))
-    c_x0 = torch.sqrt(alpha_bar_prev) - c_eps * torch.sqrt(alpha_bar)
-    fraction = c_x0 / (c_x0 + c_eps)
-    return x_k + fraction * (x0_hat - x_k)
-
-
 def displacement_target(points_cam: Tensor, T_cam_noisy: Tensor, T_cam_target: Tensor) -> Tensor:
-    """Ground-truth per-pixel displacement F_gt = T(a_gt, a_noisy) P - P.
+    """Ground-truth per-pixel displacement, Eq. (6): F_gt = T(a_gt, a_noisy) P - P.
 
     points_cam: (..., 3, *pixels) camera-frame points of the gripper rendered at the noisy pose (pixels: (H, W)
         or (N,)). T_cam_noisy, T_cam_target: (..., 4, 4) gripper poses in the camera frame for the noisy and the
@@ -89,9 +86,9 @@ def register_point_update(
     points_prev_cam: Tensor,
     mask: Tensor,
     T_world_cam: Tensor,
-    min_points: int,
+    min_points: int = MIN_VISIBLE_POINTS,
 ) -> tuple[Tensor, Tensor]:
-    """Rigid transform, in the world frame, that moves the rendered gripper from P_k to P_{k-1}.
+    """Rigid transform, in the world frame, that moves the rendered gripper from P_k to P_{k-1}: Eq. (8).
 
     All cameras are pooled: for each sample and horizon step one weighted least-squares fit over every visible
     pixel. points_k_cam, points_prev_cam: (B, T, C, 3, *pixels) camera-frame points (pixels: (H, W) or (N,));
@@ -154,3 +151,125 @@ def register_point_update(
     valid = count >= max(3, min_points)
     T_world_delta = rigid_transform_from_moments(mu_p, mu_q, cross_cov, one_point, valid)
     return T_world_delta.to(dtype), valid
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# The sampling loop.
+
+
+@dataclass
+class DenoiserOutput:
+    """One network pass on rendered actions, as the sampler needs it.
+
+    update: (B, T, 6) normalised action-space update (variants A, AI) or None.
+    logits: (B, T) gripper logits.
+    displacement: (B, T, C, 3, N) metric camera-frame displacement F of the rendered pixels (variants I, AI) or
+        None; points (B, T, C, 3, N) those pixels' camera-frame points P; mask (B, T, C, N) where they are set;
+        T_world_cam (B, T, C, 4, 4) the cameras of the future frames.
+    composite: (B, F, C, 3, h, w) the images the network saw (for visualisation), or None.
+    """
+
+    update: Tensor | None
+    logits: Tensor
+    displacement: Tensor | None = None
+    points: Tensor | None = None
+    mask: Tensor | None = None
+    T_world_cam: Tensor | None = None
+    composite: Tensor | None = None
+
+
+#: denoise_fn(a (B, T, 6) normalised, T_ee_target (B, T, 4, 4), timestep (B,) long, full_composite) -> output
+DenoiseFn = Callable[[Tensor, Tensor, Tensor, bool], DenoiserOutput]
+
+
+def image_space_action(
+    a: Tensor, T_ee_target: Tensor, out: DenoiserOutput, T_world_ee_now: Tensor, action_stats,
+    alpha_bar: Tensor, alpha_bar_prev: Tensor, point_update: str,
+) -> tuple[Tensor, Tensor]:
+    """The next action from the image-space prediction (Sec. IV-D): P_0 = P_k + F, then either
+
+    - "x0": one registration P_k -> P_0 (Eq. 8) gives the clean action estimate, and the DDIM step (Eq. 7) is
+      taken in normalised action space (as diffusers does for sample prediction; independent of where the
+      cameras are), or
+    - "ddim": the paper's Eq. (7) applied to the camera-frame points (P_k -> P_{k-1}), then Eq. (8) (it rescales
+      the cloud about each camera centre).
+
+    a, T_ee_target: the current actions (B, T, 6) normalised and their poses (B, T, 4, 4); T_world_ee_now
+    (B, 1, 4, 4). Returns (a_next (B, T, 6), valid (B, T) bool: enough rendered pixels were visible).
+    """
+    p_k = out.points.float()
+    p0 = p_k + out.displacement
+    p_target = p0 if point_update == "x0" else ddim_step(p_k, p0, alpha_bar, alpha_bar_prev)
+    T_world_delta, valid = register_point_update(p_k, p_target, out.mask, out.T_world_cam, MIN_VISIBLE_POINTS)
+    # T_ee_moved = T_world_ee_now^-1 T_world_delta T_world_ee_now T_ee_target, composed in float64 for precision.
+    T_now = T_world_ee_now.double()
+    T_ee_moved = (invert_transform(T_now) @ T_world_delta.double() @ T_now @ T_ee_target.double()).float()
+    a_image = action_stats.normalize(action_from_pose(T_ee_moved))
+    if point_update == "x0":
+        a_image = ddim_step(a, a_image.clamp(-1, 1), alpha_bar, alpha_bar_prev)
+    return a_image, valid
+
+
+def sampler_step(
+    denoise_fn: DenoiseFn, a: Tensor, timestep: int, alpha_bar: Tensor, alpha_bar_prev: Tensor, action_stats,
+    T_world_ee_now: Tensor, point_update: str = "x0", full_composite: bool = False,
+) -> tuple[Tensor, Tensor, Tensor | None, Tensor | None]:
+    """One denoising step a_k -> a_{k-1} (Sec. IV-D): render the actions, predict, update.
+
+    a: (B, T, 6) normalised actions at diffusion step `timestep`; alpha_bar / alpha_bar_prev: that step's
+    cumulative alphas. The clean estimate comes from the image space where enough rendered pixels are visible
+    (variants I, AI; `image_space_action`), else from the action space (a + update for A and AI; the current
+    action for I), followed by a DDIM step (Eq. 7 in action space).
+    Returns (a_next (B, T, 6), gripper logits (B, T), valid (B, T) bool or None without image-space predictions,
+    the composite images when `full_composite`, else None).
+    """
+    a = a.clamp(-1, 1)
+    T_ee_target = pose_from_action(action_stats.unnormalize(a))
+    steps = torch.full((a.shape[0],), timestep, device=a.device, dtype=torch.long)
+    out = denoise_fn(a, T_ee_target, steps, full_composite)
+    x0_action = (a + out.update).clamp(-1, 1) if out.update is not None else a
+    a_next = ddim_step(a, x0_action, alpha_bar, alpha_bar_prev)
+    valid = None
+    if out.displacement is not None:
+        a_image, valid = image_space_action(
+            a, T_ee_target, out, T_world_ee_now, action_stats, alpha_bar, alpha_bar_prev, point_update
+        )
+        a_next = torch.where(valid[..., None], a_image, a_next)
+    return a_next, out.logits, valid, out.composite
+
+
+def sample_actions(
+    denoise_fn: DenoiseFn, noise: Tensor, timesteps: list[int], alpha_bar: Tensor, alpha_bar_prev: Tensor,
+    action_stats, T_world_ee_now: Tensor, point_update: str = "x0", final_action_step: bool = True,
+    on_visibility: Callable[[Tensor], None] | None = None, record: list | None = None,
+) -> tuple[Tensor, Tensor]:
+    """The R&D sampler (Sec. IV-D): from Gaussian noise in normalised action space, one `sampler_step` per
+    inference timestep, then (`final_action_step`, variants A and AI) one more pass at timestep 0 whose
+    action-space prediction gives the final, precise action (Sec. IV-B, R&D-AI).
+
+    noise: (B, T, 6); timesteps: the S DDIM steps k; alpha_bar, alpha_bar_prev: (S,) their cumulative alphas
+    (`inference_schedule`); T_world_ee_now: (B, 1, 4, 4) the current end-effector pose; `on_visibility(valid)`
+    is called with each step's (B, T) visibility; `record`, a list, receives the composite images of every pass.
+    Returns (a_0 (B, T, 6) normalised, gripper logits (B, T)).
+    """
+    a = noise
+    logits = None
+    for i, k in enumerate(timesteps):
+        a, logits, valid, composite = sampler_step(
+            denoise_fn, a, k, alpha_bar[i], alpha_bar_prev[i], action_stats, T_world_ee_now, point_update,
+            full_composite=record is not None,
+        )
+        if valid is not None and on_visibility is not None:
+            on_visibility(valid)
+        if record is not None:
+            record.append(composite)
+    a = a.clamp(-1, 1)
+    if final_action_step:
+        T_ee_target = pose_from_action(action_stats.unnormalize(a))
+        out = denoise_fn(a, T_ee_target, torch.zeros((a.shape[0],), device=a.device, dtype=torch.long),
+                         record is not None)  # fmt: skip
+        if record is not None:
+            record.append(out.composite)
+        logits = out.logits
+        a = (a + out.update).clamp(-1, 1)
+    return a, logits

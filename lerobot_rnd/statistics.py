@@ -1,11 +1,12 @@
 """Normalisation statistics of R&D's targets, estimated from a LeRobot dataset on disk.
 
 R&D normalises its targets to [-1, 1] by min/max (the paper's appendix: without it nothing is learnt):
-the 6-D action chunk (translation + rotation vector of `T_ee_target`, jointly over the horizon or per step)
+the 6-D action chunk (translation + rotation vector of `T_ee_target`, jointly over the horizon)
 and the per-pixel image-space displacement (per camera and axis).
 """
 
 import logging
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -117,72 +118,91 @@ def _check_finite_rows(episodes) -> None:
                 )
 
 
-def widen(minimum: Tensor, maximum: Tensor, margin: float) -> tuple[Tensor, Tensor]:
+#: The target min/max are widened by this fraction of their range on each side, so no training target is clamped.
+STATS_MARGIN = 0.05
+
+
+def widen(minimum: Tensor, maximum: Tensor, margin: float = STATS_MARGIN) -> tuple[Tensor, Tensor]:
     """Widen [min, max] by `margin` x range on each side."""
     pad = (maximum - minimum) * margin
     return minimum - pad, maximum + pad
 
 
 @torch.no_grad()
-def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 16) -> dict[str, Tensor]:
-    """Action, displacement and gripper statistics for `model` (an `RnDModel`) from the dataset on disk.
+def estimate_rnd_statistics(
+    dataset_root: str | Path,
+    *,
+    n_obs_steps: int,
+    chunk_size: int,
+    num_samples: int,
+    n_cameras: int,
+    image_size: tuple[int, int],
+    ee_pose: Callable[[Tensor], Tensor],
+    gripper_state: Callable[[Tensor], Tensor],
+    to_rnd: Callable[..., tuple[Tensor, Tensor]],
+    noisy_sample_targets: Callable[..., dict],
+    device: torch.device | str = "cpu",
+    batch_size: int = 16,
+    seed: int = 0,
+) -> dict[str, Tensor]:
+    """Action, displacement and gripper statistics of R&D's training targets, from the dataset on disk.
+
+    The model's pieces come in as functions: `ee_pose(state (S, H, D)) -> T_world_ee (S, H, 4, 4)`,
+    `gripper_state(state) -> (S, H)`, `to_rnd(action (S, T, A), T_world_ee_now (S, 4, 4), state=...) ->
+    (T_ee_target (S, T, 4, 4), gripper (S, T))` (the action adapter), and `noisy_sample_targets(images, T_world_ee,
+    gripper, T_ee_target, generator=..., action_stats=...)` (`RnDModel.noisy_sample_targets`).
 
     - Action min/max over EVERY training window of the dataset (streamed, padded steps excluded), widened by
-      `action_stats_margin`, so no training target falls outside [-1, 1].
+      `STATS_MARGIN`, so no training target falls outside [-1, 1].
     - Gripper: the open/closed ratio of the targets (the BCE's positive-class weight, clamped to [0.1, 10]).
-    - Displacement min/max per camera and axis from `stats_num_samples` random windows, produced exactly as
-      training produces its targets (`RnDModel.noisy_sample_targets`), widened by the same margin.
+    - Displacement min/max per camera and axis from `num_samples` random windows, produced exactly as
+      training produces its targets (noised in the action normalisation just estimated), widened by the same margin.
+
+    Returns {"action_min", "action_max"} (6,), {"displacement_min", "displacement_max"} (C, 3, 1, 1) and
+    "gripper_pos_weight" (a scalar tensor).
     """
-    cfg = model.config
-    episodes = load_episode_arrays(dataset_meta.root)
+    episodes = load_episode_arrays(dataset_root)
     if not episodes or sum(len(s) for s, _ in episodes) == 0:
-        raise ValueError(f"The dataset at {dataset_meta.root} has no frames: record or select some episodes.")
+        raise ValueError(f"The dataset at {dataset_root} has no frames: record or select some episodes.")
     _check_finite_rows(episodes)
-    device = model.action_stats.min.device
-    shape = (cfg.chunk_size, 6) if cfg.per_horizon_action_normalization else (6,)
     big = torch.finfo(torch.float32).max
-    a_min = torch.full(shape, big, device=device)
-    a_max = torch.full(shape, -big, device=device)
+    a_min = torch.full((6,), big, device=device)
+    a_max = torch.full((6,), -big, device=device)
     n_closed = n_open = 0
-    for state, action, is_pad in iter_all_windows(episodes, cfg.n_obs_steps, cfg.chunk_size):
+    for state, action, is_pad in iter_all_windows(episodes, n_obs_steps, chunk_size):
         state, action, valid = state.to(device), action.to(device), (~is_pad).to(device)
-        T_world_ee = model.ee_reader.pose(state)
-        T_ee_target, grip = model.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
+        T_world_ee = ee_pose(state)
+        T_ee_target, grip = to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
         a = action_from_pose(T_ee_target).float()  # (S, T, 6)
-        reduce_dims = (0,) if cfg.per_horizon_action_normalization else (0, 1)
-        a_min = torch.minimum(a_min, torch.where(valid[..., None], a, big).amin(reduce_dims))
-        a_max = torch.maximum(a_max, torch.where(valid[..., None], a, -big).amax(reduce_dims))
+        a_min = torch.minimum(a_min, torch.where(valid[..., None], a, big).amin((0, 1)))
+        a_max = torch.maximum(a_max, torch.where(valid[..., None], a, -big).amax((0, 1)))
         n_closed += int(((grip > 0) & valid).sum())
         n_open += int(((grip <= 0) & valid).sum())
-    never = a_min > a_max  # a horizon step never valid (per-horizon normalisation on very short episodes)
-    a_min = torch.where(never, torch.zeros_like(a_min), a_min)
-    a_max = torch.where(never, torch.zeros_like(a_max), a_max)
-    a_min, a_max = widen(a_min, a_max, cfg.action_stats_margin)
-    model.action_stats.set(a_min, a_max)
+    a_min, a_max = widen(a_min, a_max)
+    action_stats = MinMaxStats((6,)).to(device)
+    action_stats.set(a_min, a_max)
     pos_weight = 1.0 if n_closed == 0 or n_open == 0 else min(10.0, max(0.1, n_open / n_closed))
 
-    state, action, is_pad = sample_training_windows(
-        episodes, cfg.n_obs_steps, cfg.chunk_size, cfg.stats_num_samples, seed=cfg_seed(cfg)
-    )
-    n_cam = len(model.camera_keys)
-    d_min = torch.full((n_cam, 3), float("inf"), device=device)
-    d_max = torch.full((n_cam, 3), float("-inf"), device=device)
-    generator = torch.Generator(device="cpu").manual_seed(cfg_seed(cfg))
-    h, w = cfg.image_size
+    state, action, is_pad = sample_training_windows(episodes, n_obs_steps, chunk_size, num_samples, seed=seed)
+    d_min = torch.full((n_cameras, 3), float("inf"), device=device)
+    d_max = torch.full((n_cameras, 3), float("-inf"), device=device)
+    generator = torch.Generator(device="cpu").manual_seed(seed)
+    h, w = image_size
     desc = f"R&D image-space target statistics ({len(state)} samples; fewer: --policy.stats_num_samples)"
     for start in tqdm(range(0, len(state), batch_size), desc=desc, leave=False):
         sl = slice(start, start + batch_size)
         st, ac, valid = state[sl].to(device), action[sl].to(device), (~is_pad[sl]).to(device)
         b = st.shape[0]
-        T_world_ee = model.ee_reader.pose(st)
-        gripper = model.ee_reader.gripper(st)
-        T_ee_target, _ = model.action_adapter.to_rnd(ac, T_world_ee[:, -1], state=st[:, -1])
-        blank = torch.zeros(b, cfg.n_obs_steps, n_cam, 3, h, w, device=device)
-        sample = model.noisy_sample_targets(blank, T_world_ee, gripper, T_ee_target, generator=generator)
+        T_world_ee = ee_pose(st)
+        T_ee_target, _ = to_rnd(ac, T_world_ee[:, -1], state=st[:, -1])
+        blank = torch.zeros(b, n_obs_steps, n_cameras, 3, h, w, device=device)
+        sample = noisy_sample_targets(
+            blank, T_world_ee, gripper_state(st), T_ee_target, generator=generator, action_stats=action_stats
+        )
         disp = sample["displacement"]  # (b, T, C, 3, N)
         m = (sample["target_mask"] & valid[:, :, None, None]).unsqueeze(3)  # (b, T, C, 1, N)
-        per_cam = disp.permute(2, 3, 0, 1, 4).reshape(n_cam, 3, -1)
-        per_cam_mask = m.expand_as(disp).permute(2, 3, 0, 1, 4).reshape(n_cam, 3, -1)
+        per_cam = disp.permute(2, 3, 0, 1, 4).reshape(n_cameras, 3, -1)
+        per_cam_mask = m.expand_as(disp).permute(2, 3, 0, 1, 4).reshape(n_cameras, 3, -1)
         d_min = torch.minimum(d_min, torch.where(per_cam_mask, per_cam, float("inf")).amin(-1))
         d_max = torch.maximum(d_max, torch.where(per_cam_mask, per_cam, float("-inf")).amax(-1))
     never_seen = ~torch.isfinite(d_min)
@@ -194,7 +214,7 @@ def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 16) -> dict[s
         )
         d_min = torch.where(never_seen, torch.full_like(d_min, -0.05), d_min)
         d_max = torch.where(never_seen, torch.full_like(d_max, 0.05), d_max)
-    d_min, d_max = widen(d_min, d_max, cfg.action_stats_margin)
+    d_min, d_max = widen(d_min, d_max)
     return {
         "action_min": a_min,
         "action_max": a_max,
@@ -202,7 +222,3 @@ def estimate_rnd_statistics(model, dataset_meta, batch_size: int = 16) -> dict[s
         "displacement_max": d_max[..., None, None],
         "gripper_pos_weight": torch.tensor(pos_weight),
     }
-
-
-def cfg_seed(cfg) -> int:
-    return int(getattr(cfg, "stats_seed", 0))

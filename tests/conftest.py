@@ -13,7 +13,7 @@ torch.set_num_threads(max(1, min(2, os.cpu_count() or 1)))
 @pytest.fixture(scope="session")
 def toy_dataset_root(tmp_path_factory):
     """A 3-episode synthetic reaching dataset (64x64 front + wrist cameras) with its embodiment JSON."""
-    from tests.toy_data import record_toy_dataset
+    from lerobot_rnd.testing import record_toy_dataset
 
     return record_toy_dataset(tmp_path_factory.mktemp("toy") / "toy_reach")
 

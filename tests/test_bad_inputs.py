@@ -15,7 +15,7 @@ import pytest
 import torch
 
 from tests.helpers import FIXTURE_CHECKPOINT, make_policy
-from tests.toy_data import toy_embodiment
+from lerobot_rnd.testing import toy_embodiment
 
 
 def _write(tmp_path, d, name="emb.json"):

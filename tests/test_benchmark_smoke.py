@@ -125,12 +125,12 @@ def test_dry_run_commands(tmp_path):
 
 def test_train_only_trains_and_leaves_the_evaluation_for_later(tmp_path):
     cmds = _dry_run(tmp_path, "--methods", "rnd_ai,act", "--train-only",
-                    "--train-arg", "rnd:--policy.image_shift_augment=6")  # fmt: skip
+                    "--train-arg", "rnd:--policy.dim_model=384")  # fmt: skip
     train = [c for c in cmds if "lerobot-train" in c]
     assert len(train) == 2 and not [c for c in cmds if "lerobot-eval" in c]
     rnd = next(c for c in train if "rnd_ai" in c)
-    assert "--policy.image_shift_augment=6" in rnd
-    assert "image_shift_augment" not in next(c for c in train if "act.json" in c)
+    assert "--policy.dim_model=384" in rnd
+    assert "dim_model=384" not in next(c for c in train if "act.json" in c)
     with pytest.raises(SystemExit):
         cli.parse_args(["--scale", "smoke", "--train-only", "--eval-only"])
 
@@ -309,11 +309,11 @@ def test_collect_from_refuses_a_folder_trained_otherwise(tmp_path):
 
 def test_resume_refuses_another_training_recipe(tmp_path):
     """A results folder holds one recipe: resuming a --train-arg run without it (or with another) is refused
-    before anything runs, so a shift-augmented run is never reported as the plain config."""
+    before anything runs, so a wider run is never reported as the plain config."""
     common = ["--scale", "smoke", "--methods", "act", "--out", str(tmp_path / "o"), "--work-dir", str(tmp_path / "w"),
               "--data-dir", str(tmp_path / "d"), "--resume"]  # fmt: skip
     (tmp_path / "w").mkdir()
-    first = cli.parse_args([*common, "--train-arg", "rnd:--policy.image_shift_augment=6"])
+    first = cli.parse_args([*common, "--train-arg", "rnd:--policy.dim_model=384"])
     (tmp_path / "w" / "state.json").write_text(json.dumps({"args": {"train_arg": first.train_arg}}))
     b = Benchmark(cli.parse_args(common))
     b.record = lambda task: (_ for _ in ()).throw(AssertionError("nothing may run"))

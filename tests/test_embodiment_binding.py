@@ -8,7 +8,7 @@ import pytest
 import torch
 
 from tests.helpers import make_policy
-from tests.toy_data import toy_embodiment
+from lerobot_rnd.testing import toy_embodiment
 
 
 @pytest.mark.parametrize("axis", [0, 1, 2])
@@ -17,8 +17,9 @@ def test_mesh_buffers_are_textured_about_the_embodiments_symmetry_axis(toy_datas
     emb.symmetry_axis = axis
     path = emb.save_json(tmp_path / "embodiment.json")
     policy, _ = make_policy(toy_dataset_root, embodiment=str(path))
-    meshes, cfg = policy.model.meshes, policy.config
-    side_pos, side_neg = (torch.tensor(c, dtype=torch.float32) for c in cfg.texture_colors)
+    meshes = policy.model.meshes
+    # red on the positive side, blue on the negative (the paper's figures)
+    side_pos, side_neg = torch.tensor([1.0, 0.1, 0.1]), torch.tensor([0.1, 0.3, 1.0])
     for i in range(meshes.vertices.shape[0]):  # "full", "fingers"
         used = torch.unique(meshes.faces[i][meshes.face_valid[i]])
         v, c = meshes.vertices[i][used], meshes.colors_textured[i][used]

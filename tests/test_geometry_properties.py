@@ -617,13 +617,15 @@ class _GarbageDisplacementNetwork(StandInNetwork):
         return displacement, self.update, torch.ones(noisy_action.shape[:2])
 
 
-def test_sampler_step_falls_back_to_the_action_space_below_min_visible_points(toy_dataset_root):
-    """Where fewer than `min_visible_points` rendered pixels are predicted (here: never enough), the sampler step
+def test_sampler_step_falls_back_to_the_action_space_below_min_visible_points(toy_dataset_root, monkeypatch):
+    """Where fewer than `MIN_VISIBLE_POINTS` rendered pixels are predicted (here: never enough), the sampler step
     is the action-space DDIM step with x0 = a + update, whatever the image space predicts."""
+    from lerobot_rnd import sampler
     from lerobot_rnd.sampler import ddim_step
     from tests.helpers import make_policy
 
-    policy, _ = make_policy(toy_dataset_root, variant="AI", point_update="x0", min_visible_points=10**9)
+    monkeypatch.setattr(sampler, "MIN_VISIBLE_POINTS", 10**9)
+    policy, _ = make_policy(toy_dataset_root, variant="AI", point_update="x0")
     model = policy.model
     b = 3
     state = torch.tensor([[0.02, -0.03, 0.21, 1.0], [-0.04, 0.02, 0.18, 1.0], [0.0, 0.05, 0.2, 1.0]])

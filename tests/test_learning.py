@@ -3,7 +3,7 @@
 import torch
 
 from tests.helpers import make_policy as _make_policy
-from tests.toy_data import record_toy_dataset
+from lerobot_rnd.testing import record_toy_dataset
 
 MAX_STEPS = 1500
 CHECK_EVERY = 150

@@ -1,14 +1,12 @@
 """The ViT denoiser: gripper-patch tokens against the dense model, patch selection against a hand count,
 embedding initialisation."""
 
-import numpy as np
 import pytest
 import torch
 
 from lerobot_rnd.network import (
     RnDDenoiser,
     gather_patch_pixels,
-    patch_coverage,
     patch_pixel_index,
     select_gripper_patches,
 )
@@ -91,8 +89,6 @@ def test_patch_pixels_are_the_selected_patches():
     got = gather_patch_pixels(img, patch_pixel_index(index, (2, 3), 8)).reshape(1, 1, 2, 8, 8)
     torch.testing.assert_close(got[0, 0, 0], img[0, 0, 8:16, 16:24])
     torch.testing.assert_close(got[0, 0, 1], img[0, 0, 0:8, 8:16])
-    cover = patch_coverage(index, (2, 3), 8)[0]
-    assert cover.sum() == 128 and bool(cover[8:16, 16:24].all()) and bool(cover[0:8, 8:16].all())
 
 
 def test_select_gripper_patches_picks_the_most_covered_patches():
@@ -105,15 +101,13 @@ def test_select_gripper_patches_picks_the_most_covered_patches():
     assert index.tolist() == [[0, 6, 9]]
     # Ties go to the lower patch number; an empty mask still yields k distinct patches.
     assert select_gripper_patches(torch.zeros(2, 16, 16, dtype=torch.bool), 4, 2).tolist() == [[0, 1], [0, 1]]
-    cover = patch_coverage(index, (4, 4), 4)[0]
-    expected = np.zeros((16, 16), bool)
-    expected[0:4, 0:4] = expected[4:8, 8:12] = expected[8:12, 4:8] = True
-    assert np.array_equal(cover.numpy(), expected)
 
 
-@pytest.mark.parametrize("std", [0.02, 1.0])
-def test_embedding_initialisation_std(std):
-    net = _net(0, dim_model=256, embedding_init_std=std)
+def test_embedding_initialisation_std():
+    """The frame, view, future-step and register embeddings start with std 1, as the authors' (small values
+    worked much worse for them)."""
+    std = 1.0
+    net = _net(0, dim_model=256)
     for p in (net.frame_embed, net.view_embed, net.future_pos_embed, net.register_token):
         assert abs(float(p.detach().std()) - std) < 0.25 * std
 
@@ -123,10 +117,10 @@ def test_token_count_with_gripper_patches():
     assert _net(4).n_tokens == (2 * 2 * 24 + 3 * 2 * 4) + 5 + 2 + 3
 
 
-@pytest.mark.parametrize("kind", ["conv", "conv3x3"])
+@pytest.mark.parametrize("kind", ["conv"])
 def test_conv_patch_embedding_is_patch_local_and_resolves_a_dot_inside_a_patch(kind):
-    """The conv embeddings are patch-local (a patch's token sees only its pixels, even a pixel on the patch's
-    border, which an overlapping 3x3 kernel run over the whole image would leak into the next patch) and,
+    """The conv embedding is patch-local (a patch's token sees only its pixels, even a pixel on the patch's
+    border) and,
     unlike any linear embedding, a token for a red dot is not the sum of its tokens for the dot's halves: it is
     a nonlinear detector. Views do not mix."""
     from lerobot_rnd.network import patch_embedding
@@ -178,33 +172,3 @@ def test_precomputed_observation_tokens_give_the_same_outputs(gripper_patches):
     for r, o in zip(ref, got):
         torch.testing.assert_close(o, r, atol=1e-6, rtol=0)
     assert (flipped[1] - ref[1]).abs().max() > 1e-4  # the observation frames matter: the comparison can fail
-
-
-def test_resnet_observation_encoder_tokens_see_past_their_cell_and_leave_future_patches_to_the_patch_embed():
-    """obs_encoder='resnet18': one token per 32-px cell of the observed frames, each seeing beyond its own cell
-    (a pixel in cell (0, 0) changes the token of cell (0, 1), which no patch embedding does); the selected
-    future patches still go through the patch-local embedding, so they do not depend on the rest of the image;
-    and the views keep their own tokens."""
-    net = _net(3, image_size=(64, 96), patch_size=32, obs_encoder="resnet18").eval()
-    assert net.obs_rgb_encoder is not None and net.n_patches == 6
-    rgb = torch.rand(1, 2, 2, 3, 64, 96)
-    pm = torch.zeros_like(rgb)
-    with torch.no_grad():
-        base = net.embed_observation(rgb, pm)
-        assert base.shape == (1, 2, 2, 6, 32)
-        moved = rgb.clone()
-        moved[0, 1, 0, :, 5:9, 5:9] = 1.0 - moved[0, 1, 0, :, 5:9, 5:9]  # frame 1, view 0, cell (0, 0)
-        diff = (net.embed_observation(moved, pm) - base).abs()[..., :16].amax(-1)  # RGB half of each token
-    assert diff[0, 1, 0, 0] > 0 and diff[0, 1, 0, 1] > 0  # its own cell and the next one
-    assert diff[0, 0].max() == 0 and diff[0, 1, 1].max() == 0  # other frames and the other view: untouched
-    with pytest.raises(ValueError, match="patch_size=32"):
-        _net(0, patch_size=8, obs_encoder="resnet18")
-
-
-def test_resnet_observation_encoder_config_names_the_field():
-    from lerobot_rnd.configuration_rnd import RnDConfig
-
-    with pytest.raises(ValueError, match="`obs_encoder`.*patch_size=32"):
-        RnDConfig(obs_encoder="resnet18", patch_size=16)
-    with pytest.raises(ValueError, match="`obs_encoder` must be one of"):
-        RnDConfig(obs_encoder="vgg")

@@ -90,7 +90,7 @@ def test_config_round_trips_through_json(tmp_path):
         ({"num_inference_steps": 0}, "num_inference_steps"),
         ({"dim_model": 100, "n_heads": 16}, "divisible"),
         ({"image_size": (100, 128)}, "image_size"),
-        ({"min_visible_points": 2}, "min_visible_points"),
+        ({"patch_embed": "conv", "patch_size": 12, "image_size": (96, 96)}, "patch_embed"),
         ({"point_update": "svd"}, "point_update"),
         ({"normalization_mapping": {"STATE": "MEAN_STD"}}, "IDENTITY"),
     ],
@@ -100,3 +100,21 @@ def test_config_rejects_bad_values_with_a_clear_message(kwargs, message):
 
     with pytest.raises(ValueError, match=message):
         RnDConfig(device="cpu", **kwargs)
+
+
+def test_config_is_lean_and_every_field_is_documented():
+    """At most 35 fields (LeRobot's ACT has 23, Diffusion Policy 37, counting n_obs_steps), each named in the
+    class docstring's Args, as LeRobot's configs document theirs."""
+    import dataclasses
+
+    from lerobot.configs.policies import PreTrainedConfig
+
+    from lerobot_rnd.configuration_rnd import RETIRED_FIELDS, RnDConfig
+
+    base = {f.name for f in dataclasses.fields(PreTrainedConfig)} - {"n_obs_steps"}
+    own = [f.name for f in dataclasses.fields(RnDConfig) if f.name not in base]
+    assert len(own) <= 35, len(own)
+    args = RnDConfig.__doc__.split("Args:")[1]
+    undocumented = [name for name in own if f"{name}:" not in args and f"{name}," not in args]
+    assert not undocumented
+    assert not set(own) & set(RETIRED_FIELDS)

@@ -37,11 +37,14 @@ def _losses(result: subprocess.CompletedProcess) -> dict[int, float]:
 def test_resume_reproduces_the_uninterrupted_run(toy_dataset_root, tmp_path):
     def flags(out: Path, steps: int) -> list[str]:
         return [
-            "--policy.type=rnd", "--policy.device=cpu", "--policy.push_to_hub=false", "--policy.use_ema=true",
+            "--policy.type=rnd", "--policy.device=cpu", "--policy.push_to_hub=false",
             "--dataset.repo_id=local/toy_reach", f"--dataset.root={toy_dataset_root}", f"--output_dir={out}",
             f"--steps={steps}", f"--save_freq={CUT}", f"--batch_size={BATCH}", "--num_workers=0", "--log_freq=1",
-            "--eval_freq=0", "--wandb.enable=false", "--seed=7", "--policy.optimizer_lr=1e-3",
-            "--policy.scheduler_name=constant", *tiny_policy_flags(),
+            "--eval_freq=0", "--wandb.enable=false", "--seed=7",
+            # AdamW at a constant learning rate (the policy's preset is cosine over --steps)
+            "--use_policy_training_preset=false", "--optimizer.type=adamw", "--optimizer.lr=1e-3",
+            "--scheduler.type=diffuser", "--scheduler.name=constant",
+            *tiny_policy_flags(),
         ]  # fmt: skip
 
     whole = _train(tmp_path, *flags(tmp_path / "whole", TOTAL))

@@ -13,21 +13,23 @@ def _checkpoint(tmp_path, steps=3000, root="demos", **policy):
     ckpt = tmp_path / "ckpt"
     ckpt.mkdir()
     cfg = {"steps": steps, "dataset": {"root": str(tmp_path / root)},
-           "policy": {"image_shift_augment": 0, "use_ema": False, "dropout": 0.0, **policy}}  # fmt: skip
+           "policy": {"dim_model": 256, "dropout": 0.0, **policy}}  # fmt: skip
     (ckpt / "train_config.json").write_text(json.dumps(cfg))
     return ckpt
 
 
-def test_a_checkpoint_trained_as_the_row_says_is_accepted(tmp_path):
-    ckpt = _checkpoint(tmp_path, image_shift_augment=6, use_ema=True, dropout=0.1)
-    check_reused_checkpoint(ckpt, ROWS["regularised"][0], 3000, tmp_path / "demos")
+def test_a_checkpoint_trained_as_the_row_says_is_accepted_and_refused_for_another_row(tmp_path):
+    ckpt = _checkpoint(tmp_path, dim_model=384)
+    assert check_reused_checkpoint(ckpt, ROWS["width_384"][0], 3000, tmp_path / "demos") is None
+    with pytest.raises(SystemExit, match="policy.dropout is 0.0, the row wants 0.1"):
+        check_reused_checkpoint(ckpt, ROWS["dropout_0.1"][0], 3000, tmp_path / "demos")
 
 
 @pytest.mark.parametrize(
     ("row", "policy", "steps", "root", "message"),
     [
-        ("shift_aug", {}, 3000, "demos", "policy.image_shift_augment is 0, the row wants 6"),
-        ("regularised", {"image_shift_augment": 6, "use_ema": True}, 3000, "demos", "policy.dropout is 0.0"),
+        ("width_384", {}, 3000, "demos", "policy.dim_model is 256, the row wants 384"),
+        ("no_point_maps", {"dim_model": 384}, 3000, "demos", "policy.use_point_map_input is None"),
         ("default", {}, 1500, "demos", "trained for 1500 steps, not --steps 3000"),
         ("default", {}, 3000, "other", "not --data"),
     ],
@@ -40,7 +42,7 @@ def test_a_checkpoint_trained_otherwise_is_refused(tmp_path, row, policy, steps,
 
 def test_checkpoint_flag_names_a_training_row(tmp_path, capsys):
     with pytest.raises(SystemExit):
-        main(["--checkpoint", f"interpolate={tmp_path}", "--out", str(tmp_path / "a.json")])
+        main(["--checkpoint", f"ddim_points={tmp_path}", "--out", str(tmp_path / "a.json")])
     assert "ROW one of the training rows" in capsys.readouterr().err
 
 
@@ -50,7 +52,7 @@ def test_a_reused_checkpoint_reports_the_command_that_trained_it(tmp_path):
     ckpt = tmp_path / "run" / "train" / "checkpoints" / "003000" / "pretrained_model"
     ckpt.mkdir(parents=True)
     assert reused_train_command(ckpt) is None  # not a harness run: nothing to report
-    cmd = ["lerobot-train", "--policy.image_shift_augment=6"]
+    cmd = ["lerobot-train", "--policy.dim_model=384"]
     (tmp_path / "run" / "run.json").write_text(json.dumps({"commands": {"train": cmd}}))
     assert reused_train_command(ckpt) == cmd
 
@@ -58,8 +60,8 @@ def test_a_reused_checkpoint_reports_the_command_that_trained_it(tmp_path):
 def test_a_row_records_what_its_checkpoint_was_trained_with(tmp_path):
     """The config's defaults change between runs (patch_embed became "conv"), so a row stores the switches read
     back from its checkpoint, not only its overrides."""
-    ckpt = _checkpoint(tmp_path, patch_embed="conv", use_ema=True, dim_model=256)
-    assert trained_switches(ckpt) == {"patch_embed": "conv", "image_shift_augment": 0, "use_ema": True, "dropout": 0.0}
+    ckpt = _checkpoint(tmp_path, patch_embed="conv", point_update="x0", dim_model=256)
+    assert trained_switches(ckpt) == {"patch_embed": "conv", "point_update": "x0", "dim_model": 256, "dropout": 0.0}
     assert trained_switches(tmp_path / "missing") == {}
 
 

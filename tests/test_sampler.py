@@ -5,7 +5,7 @@ import pytest
 import torch
 from scipy.spatial.transform import Rotation
 
-from lerobot_rnd.sampler import ddim_step, displacement_target, interpolation_step, register_point_update
+from lerobot_rnd.sampler import ddim_step, displacement_target, register_point_update
 from tests.helpers import StandInNetwork
 from tests.helpers import make_policy as _make_policy
 
@@ -33,14 +33,12 @@ def test_displacement_target_matches_per_point_rigid_motion():
             np.testing.assert_allclose(got[:, v, u], expected, atol=1e-9)
 
 
-def test_ddim_step_reaches_the_prediction_on_the_last_step_and_interpolation_is_translation_equivariant():
+def test_ddim_step_reaches_the_prediction_on_the_last_step_and_matches_the_hand_formula():
     x_k, x0 = torch.randn(10, 3), torch.randn(10, 3)
     np.testing.assert_allclose(ddim_step(x_k, x0, torch.tensor(0.3), torch.tensor(1.0)), x0, atol=1e-6)
-    np.testing.assert_allclose(interpolation_step(x_k, x0, torch.tensor(0.3), torch.tensor(1.0)), x0, atol=1e-6)
-    shift = torch.tensor([1.0, -2.0, 0.5])
-    a = interpolation_step(x_k + shift, x0 + shift, torch.tensor(0.3), torch.tensor(0.6))
-    b = interpolation_step(x_k, x0, torch.tensor(0.3), torch.tensor(0.6)) + shift
-    np.testing.assert_allclose(a, b, atol=1e-5)
+    # Eq. (7) by hand at alpha_k = 0.36, alpha_{k-1} = 0.64: 0.8 x0 + sqrt(0.36 / 0.64) (x_k - 0.6 x0)
+    expected = 0.8 * x0 + 0.75 * (x_k - 0.6 * x0)
+    np.testing.assert_allclose(ddim_step(x_k, x0, torch.tensor(0.36), torch.tensor(0.64)), expected, atol=1e-6)
 
 
 def test_register_point_update_pools_cameras_and_flags_invisible_steps():
@@ -84,7 +82,7 @@ def _exact_displacement(model, future_points, T_world_ee_now, T_ee_from, T_ee_to
     rel = cam_from_world @ (T_world_ee_now[:, None, None] @ T_ee_to[:, :, None]) @ torch.linalg.inv(
         cam_from_world @ (T_world_ee_now[:, None, None] @ T_ee_from[:, :, None])
     )
-    points = future_points.flatten(4) * model.config.point_map_scale  # (B, T, C, 3, N)
+    points = future_points.flatten(4)  # (B, T, C, 3, N), metres
     moved = torch.einsum("btcij,btcjn->btcin", rel[..., :3, :3], points) + rel[..., :3, 3, None]
     return (moved - points).reshape(future_points.shape)
 
@@ -147,19 +145,18 @@ def _target_chunk(b=3, seed=3):
     )
 
 
-POINT_UPDATE_MODES = ("x0", "interpolate", "ddim")
+POINT_UPDATE_MODES = ("x0", "ddim")
 
 
 @pytest.mark.parametrize("point_update", POINT_UPDATE_MODES)
 @pytest.mark.parametrize("variant", ["I", "AI"])
-@pytest.mark.parametrize("denoise_step", ["ddim", "clean", "refine"])
 def test_sampler_with_an_oracle_denoiser_reaches_the_target_from_any_noise_level(
-    toy_dataset_root, point_update, variant, denoise_step
+    toy_dataset_root, point_update, variant
 ):
     """Every point-update mode lands on the target at the final step, whatever step the sampler starts at."""
     policy, _ = _make_policy(
         toy_dataset_root, variant=variant, num_inference_steps=4, final_action_step=False,
-        point_update=point_update, denoise_step=denoise_step,
+        point_update=point_update,
     )
     model = policy.model
     images, T_world_ee, gripper = _observation(model)
@@ -206,12 +203,12 @@ def _move_camera_back(model, cam: int, distance: float) -> None:
 
 
 @pytest.mark.parametrize("cameras", [("front",), ("wrist",), ("front", "wrist")])
-@pytest.mark.parametrize("point_update", ["x0", "interpolate"])
+@pytest.mark.parametrize("point_update", ["x0"])
 def test_zero_displacement_does_not_move_the_gripper_and_ignores_camera_distance(
     toy_dataset_root, cameras, point_update
 ):
-    """A network predicting zero displacement: `interpolate` keeps the action, `x0` takes exactly the
-    action-space DDIM step with x0 = the current action; moving a camera away changes nothing."""
+    """A network predicting zero displacement: `x0` takes exactly the action-space DDIM step with x0 = the
+    current action; moving a camera away changes nothing."""
     from lerobot_rnd.sampler import ddim_step
 
     policy, _ = _make_policy_cameras(toy_dataset_root, cameras, variant="I", point_update=point_update)
@@ -232,7 +229,7 @@ def test_zero_displacement_does_not_move_the_gripper_and_ignores_camera_distance
         assert (composite[:, n_obs:] != images[:, -1:]).any(), "the gripper must be visible for this test"
         results.append(a_next)
     alpha, alpha_prev = model.inference_alpha_bar[1], model.inference_alpha_bar_prev[1]
-    expected = a if point_update == "interpolate" else ddim_step(a, a, alpha, alpha_prev)
+    expected = ddim_step(a, a, alpha, alpha_prev)
     for got in results:
         np.testing.assert_allclose(got.numpy(), expected.numpy(), atol=1e-5)
 
@@ -255,7 +252,7 @@ def test_paper_literal_ddim_point_update_moves_the_gripper_on_zero_displacement(
 def test_default_point_update_is_camera_independent():
     from lerobot_rnd.configuration_rnd import RnDConfig
 
-    assert RnDConfig().point_update in ("x0", "interpolate")
+    assert RnDConfig().point_update == "x0"
 
 
 def _make_policy_cameras(root, cameras, **overrides):
@@ -291,37 +288,32 @@ def test_batched_and_per_sample_inference_agree(toy_dataset_root):
     torch.testing.assert_close(batched, single, atol=1e-4, rtol=1e-4)
 
 
-def test_refine_tells_the_network_low_noise_after_the_first_step_and_jumps_to_the_estimate(toy_dataset_root):
-    """denoise_step="refine" (the research code's inference): the network hears the schedule's first timestep,
-    then 2, 1, 0 (4 steps), and every step moves the actions to the clean estimate (alpha_prev = 1)."""
-    seen = []
-    for mode in ("ddim", "refine"):
-        policy, _ = _make_policy(toy_dataset_root, variant="A", num_inference_steps=4, final_action_step=False,
-                                 denoise_step=mode)  # fmt: skip
-        model = policy.model
-        images, T_world_ee, gripper = _observation(model)
-        target = torch.full((3, 4, 6), 0.25)
-        steps, states = [], []
+def test_the_network_hears_each_ddim_timestep_and_intermediate_steps_keep_noise(toy_dataset_root):
+    """With a network that always predicts a constant clean chunk, the sampler tells it the schedule's timesteps
+    (trailing spacing: the first is pure noise), the DDIM steps keep part of the noise in between, and the last
+    step lands on the prediction."""
+    policy, _ = _make_policy(toy_dataset_root, variant="A", num_inference_steps=4, final_action_step=False)
+    model = policy.model
+    images, T_world_ee, gripper = _observation(model)
+    target = torch.full((3, 4, 6), 0.25)
+    steps, states = [], []
 
-        class Constant(StandInNetwork):  # predicts the constant target's action update; records the timesteps
-            def forward(self, *args, **kwargs):
-                timestep, noisy = args[5], args[6]
-                steps.append(timestep.tolist())
-                states.append(noisy.clone())
-                return None, target - noisy, torch.zeros(noisy.shape[:2])
+    class Constant(StandInNetwork):  # predicts the constant target's action update; records the timesteps
+        def forward(self, *args, **kwargs):
+            timestep, noisy = args[5], args[6]
+            steps.append(timestep.tolist())
+            states.append(noisy.clone())
+            return None, target - noisy, torch.zeros(noisy.shape[:2])
 
-        model.network = Constant()
-        noise = torch.randn(3, 4, 6, generator=torch.Generator().manual_seed(0)).clamp(-1, 1)
-        with torch.no_grad():
-            model.denoise(images, T_world_ee, gripper, noise)
-        seen.append((steps, states))
-    (ddim_steps, ddim_states), (refine_steps, refine_states) = seen
-    first = model.inference_timesteps[0]
-    assert [s[0] for s in refine_steps] == [first, 2, 1, 0] and all(len(set(s)) == 1 for s in refine_steps)
-    assert [s[0] for s in ddim_steps] == list(model.inference_timesteps) and ddim_steps[1][0] > 2
-    for x in refine_states[1:]:  # after the first jump, every input is the clean estimate
-        torch.testing.assert_close(x, target)
-    assert not torch.allclose(ddim_states[1], target, atol=1e-3)  # DDIM keeps noise in the intermediate steps
+    model.network = Constant()
+    noise = torch.randn(3, 4, 6, generator=torch.Generator().manual_seed(0)).clamp(-1, 1)
+    with torch.no_grad():
+        a, _ = model.denoise(images, T_world_ee, gripper, noise)
+    k = model.config.num_train_timesteps
+    assert [s[0] for s in steps] == model.inference_timesteps == [k - 1 - i * k // 4 for i in range(4)]
+    assert all(len(set(s)) == 1 for s in steps)
+    assert not torch.allclose(states[1], target, atol=1e-3)  # DDIM keeps noise in the intermediate steps
+    torch.testing.assert_close(a, target)
 
 
 @pytest.mark.parametrize("gripper_patches", [0, 4])
@@ -333,7 +325,7 @@ def test_denoise_embeds_the_observation_once_per_chunk_and_matches_the_uncached_
     policy, _ = _make_policy(toy_dataset_root, variant="AI", gripper_patches=gripper_patches)
     model = policy.model.eval()
     images, T_world_ee, gripper = _observation(model)
-    net = model.sampling_network
+    net = model.network
     embed = net.embed_observation
     calls = []
 

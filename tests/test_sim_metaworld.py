@@ -162,36 +162,6 @@ def test_state_layout_with_mocap():
     env.close()
 
 
-def test_lerobot_env_config_and_make_env():
-    import gymnasium as gym
-    from lerobot.envs.configs import EnvConfig
-    from lerobot.envs.factory import make_env
-    from lerobot.envs.utils import env_to_policy_features, preprocess_observation
-
-    import lerobot_policy_rnd  # noqa: F401  (the plugin shim LeRobot imports: registers rnd_mw)
-
-    cfg = EnvConfig.get_choice_class("rnd_mw")(task="reach-v3", episode_length=5)
-    assert "metaworld" not in cfg.type and "libero" not in cfg.type
-    feats = env_to_policy_features(cfg)
-    assert feats["observation.images.corner2"].shape == (3, 128, 128)
-    assert feats["observation.images.behindGripper"].shape == (3, 128, 128)
-    assert feats["observation.state"].shape == (8,) and feats["action"].shape == (4,)
-    envs = make_env(cfg, n_envs=2)
-    vec = envs["rnd_mw"][0]
-    assert isinstance(vec, gym.vector.VectorEnv)
-    obs, _ = vec.reset(seed=[0, 1])
-    batch = preprocess_observation(obs)
-    assert batch["observation.images.corner2"].shape == (2, 3, 128, 128)
-    assert batch["observation.state"].shape == (2, 8)
-    assert vec.call("_max_episode_steps")[0] == 5
-    done = np.zeros(2, bool)
-    for _ in range(5):
-        obs, _, term, trunc, info = vec.step(np.zeros((2, 4), np.float32))
-        done |= term | trunc
-    assert done.all() and "final_info" in info
-    vec.close()
-
-
 def test_weld_patch_fixes_lerobot_metaworld():
     import metaworld
 

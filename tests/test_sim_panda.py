@@ -270,33 +270,6 @@ def test_ee_delta_adapter_predicts_reached_poses():
 # --------------------------------------------------------------------------------------------------
 # LeRobot integration, recorder, gym-hil compatibility
 # --------------------------------------------------------------------------------------------------
-def test_lerobot_env_config_and_make_env():
-    import gymnasium as gym
-    from lerobot.envs.configs import EnvConfig
-    from lerobot.envs.factory import make_env
-    from lerobot.envs.utils import env_to_policy_features, preprocess_observation
-
-    cfg = EnvConfig.get_choice_class("rnd_panda")(task="press-button", episode_length=3)
-    feats = env_to_policy_features(cfg)
-    assert feats["observation.images.front"].shape == (3, 128, 128)
-    assert feats["observation.images.wrist"].shape == (3, 128, 128)
-    assert feats["observation.state"].shape == (8,) and feats["action"].shape == (7,)
-    assert cfg.gym_id == "gym_rnd_panda/press-button" and cfg.fps == 10
-    envs = make_env(cfg, n_envs=2)
-    vec = envs["rnd_panda"][0]
-    assert isinstance(vec, gym.vector.VectorEnv)
-    obs, _ = vec.reset(seed=[0, 1])
-    batch = preprocess_observation(obs)
-    assert batch["observation.images.front"].shape == (2, 3, 128, 128)
-    assert batch["observation.state"].shape == (2, 8)
-    done = np.zeros(2, bool)
-    for _ in range(3):
-        obs, _, term, trunc, info = vec.step(np.zeros((2, 7), np.float32))
-        done |= term | trunc
-    assert done.all()
-    vec.close()
-
-
 def test_recorder_writes_loadable_dataset(tmp_path):
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
@@ -338,19 +311,3 @@ def test_clear_error_without_gym_hil(monkeypatch):
     )
     with pytest.raises(ImportError, match="pip install --no-deps gym-hil==0.1.14"):
         panda_scene.gym_hil_assets_dir()
-
-
-def test_gym_hil_envs_step_on_installed_mujoco():
-    """gym-hil 0.1.14's own env steps after ``patch_gym_hil_for_mujoco`` (MuJoCo 4 removed MjData.qM)."""
-    from gym_hil.envs import PandaPickCubeGymEnv
-
-    from lerobot_rnd.sim.opspace import patch_gym_hil_for_mujoco
-
-    patch_gym_hil_for_mujoco()
-    env = PandaPickCubeGymEnv()
-    env.reset(seed=0)
-    z0 = env.data.site("pinch").xpos[2]
-    for _ in range(3):
-        env.step(np.array([0, 0, 0.02, 0, 0, 0, 0], np.float32))
-    assert env.data.site("pinch").xpos[2] > z0 + 0.02
-    env.close()

@@ -22,7 +22,7 @@ def test_min_max_stats_map_the_range_to_plus_minus_one_and_invert():
 
 
 def test_windows_are_clamped_and_padded_like_lerobot(tmp_path):
-    from tests.toy_data import record_toy_dataset
+    from lerobot_rnd.testing import record_toy_dataset
 
     root = record_toy_dataset(tmp_path / "toy", n_episodes=2, episode_len=5)
     episodes = load_episode_arrays(root)
@@ -45,7 +45,7 @@ def _reference_action_range(root, horizon):
     import pandas as pd
     from pathlib import Path
 
-    from tests.toy_data import R_WORLD_EE
+    from lerobot_rnd.testing import R_WORLD_EE
 
     frame = pd.concat([pd.read_parquet(f) for f in sorted(Path(root, "data").glob("**/*.parquet"))])
     lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
@@ -60,18 +60,21 @@ def _reference_action_range(root, horizon):
 
 
 def test_action_statistics_cover_every_window_with_a_margin(toy_dataset_root):
+    from lerobot_rnd.statistics import STATS_MARGIN
     from tests.helpers import make_policy as _make_policy
 
-    policy, _ = _make_policy(toy_dataset_root, action_stats_margin=0.1)
+    policy, _ = _make_policy(toy_dataset_root)
     stats = policy.model.action_stats
     lo, hi = _reference_action_range(toy_dataset_root, policy.config.chunk_size)
-    pad = 0.1 * (hi - lo)
+    margin = 0.05
+    assert STATS_MARGIN == margin
+    pad = margin * (hi - lo)
     np.testing.assert_allclose(stats.min[:3].numpy(), lo - pad, atol=1e-6)
     np.testing.assert_allclose(stats.max[:3].numpy(), hi + pad, atol=1e-6)
     # Rotation never changes in the toy data: its range is the minimum one, centred on 0.
     assert torch.allclose(stats.min[3:], -stats.max[3:])
     # So every training target lies strictly inside [-1, 1]: nothing is clamped.
-    edge = 1 / (1 + 2 * 0.1)
+    edge = 1 / (1 + 2 * margin)
     assert np.all(2 * ((hi - (lo - pad)) / ((hi + pad) - (lo - pad))) - 1 <= edge + 1e-6)
 
 
@@ -100,7 +103,7 @@ def test_non_finite_actions_are_refused_with_the_episode_and_frame(tmp_path):
     from pathlib import Path
 
     from tests.helpers import make_policy as _make_policy
-    from tests.toy_data import record_toy_dataset
+    from lerobot_rnd.testing import record_toy_dataset
 
     root = record_toy_dataset(tmp_path / "toy_nan", n_episodes=2, episode_len=6)
     files = sorted(Path(root, "data").glob("**/*.parquet"))

@@ -81,11 +81,11 @@ def test_policy_args_are_typed_by_the_field_and_validated_by_the_config():
     from lerobot_rnd.configuration_rnd import RnDConfig
 
     cfg = RnDConfig()
-    new = tr.parse_policy_args(cfg, ["num_inference_steps=1", "use_ema=false", "denoise_step=refine"])
-    assert new.num_inference_steps == 1 and new.use_ema is False and new.denoise_step == "refine"
+    new = tr.parse_policy_args(cfg, ["num_inference_steps=1", "final_action_step=false", "point_update=ddim"])
+    assert new.num_inference_steps == 1 and new.final_action_step is False and new.point_update == "ddim"
     assert cfg.num_inference_steps == 4  # the loaded config is left as it was
-    assert tr.parse_policy_args(cfg, ["use_ema=True"]).use_ema is True
-    for bad, named in [("no_such_field=1", "no_such_field"), ("use_ema=maybe", "true or false"),
+    assert tr.parse_policy_args(cfg, ["final_action_step=True"]).final_action_step is True
+    for bad, named in [("no_such_field=1", "no_such_field"), ("final_action_step=maybe", "true or false"),
                        ("num_inference_steps=two", "int"), ("num_inference_steps", "FIELD=VALUE")]:
         with pytest.raises(ValueError, match=named):
             tr.parse_policy_args(cfg, [bad])

@@ -81,13 +81,13 @@ def test_curve_evaluates_each_checkpoint_on_validation_seeds_and_resumes(tmp_pat
         str(out),
         "--episodes",
         "4",
-        "--eval-arg=--policy.denoise_step=refine",
+        "--eval-arg=--policy.num_inference_steps=2",
     ]
     assert vc.main(argv) == 0
     res = json.loads(out.with_suffix(".json").read_text())
     assert [(r["step"], r["successes"], r["episodes"]) for r in res["rows"]] == [(1500, 1, 4), (3000, 3, 4)]
     assert res["rows"][0]["training_loss_near_step"] == pytest.approx(1 / 1500)
-    assert all("--seed=100" in c and "--policy.denoise_step=refine" in c for c in calls)
+    assert all("--seed=100" in c and "--policy.num_inference_steps=2" in c for c in calls)
     assert out.with_suffix(".png").exists()
     assert all("/work/curve/step_" in next(a for a in c if a.startswith("--output_dir=")) for c in calls)
     assert sorted(p.name for p in tmp_path.iterdir()) == [

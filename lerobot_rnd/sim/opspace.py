@@ -1,9 +1,8 @@
 """Operational-space controller of the Panda suite: a port of gym-hil's ``gym_hil.controllers.opspace`` that
-also runs on MuJoCo 4, and the patch that makes gym-hil's own envs use it."""
+also runs on MuJoCo 4 (where ``MjData.qM`` is gone)."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
 
 import numpy as np
@@ -121,29 +120,3 @@ class OpSpaceController:
             self.model, data, self.site_id, self.dof_ids, pos=pos, ori=quat, joint=self.home,
             _buffers=self._buffers,
         )  # fmt: skip
-
-
-_GYM_HIL_PATCHED = False
-
-
-def patch_gym_hil_for_mujoco() -> None:
-    """Make gym-hil 0.1.14's own envs (``gym_hil/PandaPickCube*``, LeRobot's ``gym_manipulator``) step on
-    MuJoCo 4, where ``MjData.qM`` is gone: its ``opspace`` is replaced by :func:`opspace` (same
-    signature and result). Idempotent; a no-op without gym-hil or on MuJoCo versions that have ``qM``."""
-    global _GYM_HIL_PATCHED
-    if _GYM_HIL_PATCHED or importlib.util.find_spec("gym_hil") is None:
-        return
-    import mujoco
-
-    if hasattr(mujoco.MjData(mujoco.MjModel.from_xml_string("<mujoco/>")), "qM"):
-        _GYM_HIL_PATCHED = True
-        return
-    import sys
-
-    import gym_hil.controllers
-    import gym_hil.mujoco_gym_env
-
-    sys.modules["gym_hil.controllers.opspace"].opspace = opspace  # the package attribute is the function
-    gym_hil.controllers.opspace = opspace
-    gym_hil.mujoco_gym_env.opspace = opspace
-    _GYM_HIL_PATCHED = True

@@ -622,7 +622,9 @@ def _record(
         dataset = LeRobotDataset.create(
             repo_id=s.repo_id, fps=fps, features=features, root=root, robot_type=robot_type, use_videos=False
         )
-    env.embodiment().save_json(root / EMBODIMENT_FILE_IN_DATASET)
+    embodiment = env.embodiment()
+    embodiment.validate_against(dataset.meta.features)  # every camera calibrated at its recorded size
+    embodiment.save_json(root / EMBODIMENT_FILE_IN_DATASET)
     if s.image_writer_threads > 0:
         dataset.start_image_writer(num_processes=0, num_threads=s.image_writer_threads)
 

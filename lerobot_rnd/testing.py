@@ -1,4 +1,5 @@
-"""A tiny synthetic reaching task recorded as a LeRobot dataset, for fast end-to-end tests.
+"""A tiny synthetic reaching task recorded as a LeRobot dataset: for the tests, the examples that run anywhere
+(`examples/visualize_denoising.py`) and the benchmark scripts that need no simulator.
 
 A two-finger box gripper (fixed orientation, tilted) moves towards a target in steps of at most 1 cm
 (MetaWorld-style actions: xyz deltas / 0.01 m plus a gripper value). A static camera and a camera on the
