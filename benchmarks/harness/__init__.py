@@ -1,4 +1,5 @@
-"""Success-rate benchmark: R&D (A, I, AI) against LeRobot's ACT and Diffusion Policy on MetaWorld.
+"""Success-rate benchmark: R&D (A, I, AI) against LeRobot's ACT and Diffusion Policy on MetaWorld (or, with
+--suite panda, on the 6-DoF Panda + Robotiq tasks).
 
 One command records (or reuses) scripted demonstrations for every task and demo count, trains every
 method on the same demos with matched settings through ``lerobot-train``, evaluates every checkpoint on the
@@ -41,6 +42,12 @@ seeds must not include the recording seed. The harness computes every evaluation
 distance to the nearest training placement in results.json. The spatial protocol evaluates one episode on
 every valid point of a grid over two placement coordinates (the others at the centre of their range), with
 an in-process copy of lerobot-eval's loop (``rnd_mw`` takes no placement list on the command line).
+
+Panda suite (--suite panda; smoke and cpu scales): records with ``lerobot-rnd-record --suite panda``, trains from
+policies_config/panda/*_cpu.json, evaluates with ``--env.type=rnd_panda`` (120-step episodes). Its spatial protocol
+records demos by furthest point sampling over the object's x, y and yaw starting from the centre of the range
+(``--placements fps-centre``; a target at the centre of its range where valid, else seeded draws) and evaluates on a
+G x G x --grid-yaws grid over x, y and yaw (default 3 x 3 x 3 = 27 cell centres), one x-y heat map per yaw.
 
 Time budget and resumption: with ``--max-minutes M`` the harness stops starting work that would not fit,
 stops training cleanly (right after a checkpoint when the next one would not fit, otherwise at the deadline,

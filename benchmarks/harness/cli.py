@@ -15,7 +15,7 @@ from .grid_eval import main as _grid_eval
 from .processes import _exec_tool
 from .reports import rnd_losses, write_report_files
 from .runs import EXIT_OK, Benchmark
-from .scales import METHODS, SCALES
+from .scales import METHODS, SCALES, SUITES, suite_scale_defaults
 
 
 def _csv(s: str, cast=str) -> list:
@@ -25,10 +25,13 @@ def _csv(s: str, cast=str) -> list:
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=OVERVIEW, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scale", choices=sorted(SCALES), required=True)
-    p.add_argument("--tasks", help="comma-separated MetaWorld V3 tasks (scale default)")
+    p.add_argument("--suite", choices=list(SUITES), default="metaworld",
+                   help="metaworld (--env.type=rnd_mw, policies_config/metaworld/) or panda (--env.type=rnd_panda, "
+                        "policies_config/panda/: smoke and cpu scales)")  # fmt: skip
+    p.add_argument("--tasks", help="comma-separated tasks of the suite: MetaWorld V3 or Panda (scale default)")
     p.add_argument("--demos", help="comma-separated demo counts (scale default)")
     p.add_argument("--methods", default=",".join(METHODS), help=f"subset of {','.join(METHODS)}")
-    p.add_argument("--out", help="results folder (default benchmarks/results/<scale>)")
+    p.add_argument("--out", help="results folder (default benchmarks/results/<scale>, Panda: panda_<scale>)")
     p.add_argument("--work-dir", help="datasets-free working folder: checkpoints, logs, eval outputs "
                                       "(default outputs/benchmark/<name of --out>)")  # fmt: skip
     p.add_argument("--data-dir", default=str(REPO_ROOT / "outputs" / "benchmark" / "data"),
@@ -43,8 +46,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--eval-chunk", type=int, help="episodes per lerobot-eval call (0: all in one)")
     p.add_argument("--eval-batch-size", type=int, help="parallel envs per lerobot-eval call")
     p.add_argument("--episode-length", type=int, help="env steps before an episode fails")
-    p.add_argument("--grid", type=int, help="spatial protocol: G x G evaluation grid")
-    p.add_argument("--grid-dims", help="spatial protocol: two placement coordinates, e.g. 0,1 (object x, y)")
+    p.add_argument("--grid", type=int, help="spatial protocol: G x G evaluation grid (over the first two grid dims)")
+    p.add_argument("--grid-dims", help="spatial protocol: two or three placement coordinates, e.g. 0,1 (object x, y; "
+                                       "MetaWorld default) or 0,1,2 (object x, y, yaw; Panda default)")  # fmt: skip
+    p.add_argument("--grid-yaws", type=int,
+                   help="spatial protocol, three grid dims: points on the third (Panda: yaw; scale default 3, so a "
+                        "3 x 3 grid has 27 cells)")  # fmt: skip
     p.add_argument("--steps", type=int, help="training steps (same for every method)")
     p.add_argument("--batch-size", type=int)
     p.add_argument("--save-freq", type=int, help="checkpoint every N steps (0: only at the end)")
@@ -80,9 +87,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--reports-only", action="store_true",
                    help="rewrite results.md and the plots from --out/results.json, run nothing")  # fmt: skip
     a = p.parse_args(argv)
-    d = SCALES[a.scale]
+    try:
+        d = suite_scale_defaults(a.suite, a.scale)
+    except ValueError as e:
+        p.error(str(e))
     for k in ("tasks", "demos", "eval_episodes", "eval_chunk", "eval_batch_size", "episode_length", "grid",
-              "steps", "batch_size", "save_freq", "log_freq", "num_workers", "device", "min_train_slice_s"):  # fmt: skip
+              "grid_yaws", "steps", "batch_size", "save_freq", "log_freq", "num_workers", "device",
+              "min_train_slice_s"):  # fmt: skip
         if getattr(a, k) is None:
             setattr(a, k, d[k])
     a.tasks = _csv(a.tasks)
@@ -94,13 +105,19 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     a.seeds = _csv(a.seed, int)
     a.collect_from = _csv(a.collect_from)
     a.grid_dims = _csv(a.grid_dims, int) if a.grid_dims else None
-    if a.grid_dims is not None and len(a.grid_dims) != 2:
-        p.error("--grid-dims takes two coordinates")
+    if a.grid_dims is not None and len(a.grid_dims) not in (2, 3):
+        p.error("--grid-dims takes two or three coordinates")
+    if a.suite == "panda":
+        from lerobot_rnd.sim.panda_scene import PANDA_TASKS
+
+        bad = [t for t in a.tasks if t not in PANDA_TASKS]
+        if bad:
+            p.error(f"--suite panda: {bad} are not Panda tasks; tasks: {', '.join(PANDA_TASKS)}")
     if a.train_only and a.eval_only:
         p.error("--train-only and --eval-only exclude each other")
     if a.prune_optimizer is None:
         a.prune_optimizer = a.scale == "gpu"
-    a.out = a.out or str(REPO_ROOT / "benchmarks" / "results" / a.scale)
+    a.out = a.out or str(REPO_ROOT / "benchmarks" / "results" / (a.scale if a.suite == "metaworld" else f"{a.suite}_{a.scale}"))
     a.work_dir = a.work_dir or str(REPO_ROOT / "outputs" / "benchmark" / Path(a.out).name)
     return a
 

@@ -105,8 +105,9 @@ def _fmt_s(x) -> str:
 def markdown_report(res: dict) -> str:
     b, runs, st = res["benchmark"], res["runs"], res["settings"]
     cells = [(t, n) for t in b["tasks"] for n in b["demos"]]
+    suite = "" if b.get("suite", "metaworld") == "metaworld" else f" ({b['suite']} suite)"
     lines = [
-        f"# Benchmark: {b['scale']} scale, {b['protocol']} protocol",
+        f"# Benchmark{suite}: {b['scale']} scale, {b['protocol']} protocol",
         "",
         f"{'Complete' if b['complete'] else '**Incomplete** (run again with `--resume`)'}; written "
         f"{b['written']} on {b['host']['platform']} ({b['host']['cpus']} CPUs"
@@ -173,6 +174,13 @@ def markdown_report(res: dict) -> str:
     for k, v in st["matched"].items():
         lines.append(f"- {k}: {v}")
     lines.append(f"- evaluation placements: {st['eval_placements']}")
+    if st.get("demo_placements"):
+        lines.append(f"- demo placements: {st['demo_placements']}")
+    for t, es in res.get("eval_sets", {}).items():
+        if "cells" in es:
+            shape = " x ".join(str(len(es[k])) for k in ("grid_x", "grid_y", "grid_z") if k in es)
+            lines.append(f"- {t}: {shape} grid over placement coordinates {es['grid_dims']}: {len(es['cells'])} "
+                         f"cells evaluated, {es.get('n_invalid', 0)} invalid skipped")  # fmt: skip
     for t, es in res.get("eval_sets", {}).items():
         if "min_normalised_distance_to_train" in es:
             lines.append(f"- {t}: {len(es['placements'])} evaluation placements, none equal to a training one "
@@ -321,6 +329,8 @@ def plot_heatmap(res: dict, task: str, path: Path) -> None:
     es = res["eval_sets"].get(task)
     if not es or "cells" not in es:
         return
+    if len(es["grid_dims"]) == 3:
+        return plot_heatmap_3d(res, task, path)
     G = len(es["grid_x"])
     dims = es["grid_dims"]
     ms, ns = b["methods"], sorted(b["demos"])
@@ -355,6 +365,71 @@ def plot_heatmap(res: dict, task: str, path: Path) -> None:
                  f"coordinates {dims[0]}, {dims[1]})", fontsize=8)  # fmt: skip
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def _deg(rad: float) -> str:
+    return f"{math.degrees(rad):+.0f}°"
+
+
+def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
+    """Success over a 3-D evaluation grid (x, y and yaw: Panda's object pose): one x-y heat map per yaw value
+    (rows: method x yaw, columns: demo counts), the training placements' (x, y) marked with their yaw written next
+    to them. Returns the panels' titles (each names its yaw)."""
+    import numpy as np
+
+    plt = _mpl()
+    b, runs = res["benchmark"], res["runs"]
+    es = res["eval_sets"][task]
+    dims = es["grid_dims"]
+    gx, gy, gz = es["grid_x"], es["grid_y"], es["grid_z"]
+    G, Gy, Z = len(gx), len(gy), len(gz)
+    ms, ns = b["methods"], sorted(b["demos"])
+    hx = (gx[-1] - gx[0]) / max(1, G - 1) / 2
+    hy = (gy[-1] - gy[0]) / max(1, Gy - 1) / 2
+    ext = [gx[0] - hx, gx[-1] + hx, gy[0] - hy, gy[-1] + hy]
+    fig, axes = plt.subplots(len(ms) * Z, len(ns), figsize=(max(6.5, 3.0 * len(ns) + 1.2), 2.7 * len(ms) * Z + 1.0),
+                             squeeze=False)  # fmt: skip
+    titles, im = [], None
+    for i, m in enumerate(ms):
+        for j, n in enumerate(ns):
+            sel = [r for r in runs if r["method"] == m and r["task"] == task and r["demos"] == n]
+            acc = None
+            if sel and all(len(r["per_episode_success"]) == len(es["cells"]) for r in sel):
+                acc = np.mean([r["per_episode_success"] for r in sel], axis=0)
+            tr = np.asarray(res["datasets"].get(task, {}).get(str(n), {}).get("placements", []), dtype=float)
+            for iz, z in enumerate(gz):
+                ax = axes[i * Z + iz][j]
+                grid = np.full((Gy, G), np.nan)
+                k = cnt = 0
+                if acc is not None:
+                    for (iy, ix, cz), v in zip(es["cells"], acc, strict=True):
+                        if cz == iz:
+                            grid[iy, ix] = v
+                            k, cnt = k + v, cnt + 1
+                im = ax.imshow(grid, origin="lower", extent=ext, vmin=0, vmax=1, cmap="RdYlGn", aspect="auto")
+                if len(tr):
+                    ax.scatter(tr[:, dims[0]], tr[:, dims[1]], marker="x", c="k", s=18, label="demos")
+                    for p in tr:  # the yaw next to the mark, on the side towards the middle of the map
+                        right = p[dims[0]] <= (ext[0] + ext[1]) / 2
+                        up = p[dims[1]] <= (ext[2] + ext[3]) / 2
+                        ax.annotate(_deg(p[dims[2]]), (p[dims[0]], p[dims[1]]), fontsize=5,
+                                    xytext=(3 if right else -3, 3 if up else -3), textcoords="offset points",
+                                    ha="left" if right else "right", va="bottom" if up else "top")  # fmt: skip
+                rate = f"{100 * k / cnt:.0f}% of {cnt}" if cnt else "–"
+                title = f"{METHODS[m][1]}, {n} demos, yaw {_deg(z)}: {rate}"
+                titles.append(title)
+                ax.set_title(title, fontsize=7)
+                ax.tick_params(labelsize=6)
+                ax.set_xlabel(f"placement[{dims[0]}] x (m)", fontsize=7)
+                ax.set_ylabel(f"placement[{dims[1]}] y (m)", fontsize=7)
+    fig.subplots_adjust(top=1.0 - 1.0 / fig.get_figheight(), hspace=0.55, wspace=0.35)
+    fig.colorbar(im, ax=axes, shrink=0.6, label="success")
+    fig.suptitle(f"{task}: success per evaluation placement,\none x-y map per yaw (placement[{dims[2]}]: "
+                 f"{', '.join(_deg(z) for z in gz)})\nx: training placements, their yaw written; "
+                 f"{es.get('n_invalid', 0)} invalid cells skipped", fontsize=8)  # fmt: skip
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return titles
 
 
 def write_report_files(res: dict, out: Path) -> None:

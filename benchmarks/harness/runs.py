@@ -19,10 +19,23 @@ from . import REPO_ROOT, grid_eval
 from .files import _read_json, _rel, _write_json
 from .processes import OutOfTime, git_commit, run_logged, tool_argv
 from .reports import loss_curve_from_log, median_logged, median_update_s_from_log, rnd_losses, wilson_interval, write_report_files
-from .scales import COMMON_METHOD_ARGS, CONFIG_DIR, METHODS, SCALES, method_family
+from .scales import COMMON_METHOD_ARGS, METHODS, SCALES, SUITES, method_family, suite_scale_defaults
 
 HARNESS_VERSION = 1
 EXIT_OK, EXIT_FAILED, EXIT_MORE = 0, 1, 3
+#: how the spatial protocol's demos were placed (results.json settings.demo_placements), per recorder mode
+DEMO_PLACEMENTS = {
+    "fps": "lerobot-rnd-record --placements fps: furthest point sampling over every placement coordinate (scaled "
+           "to the range) of a pool of 1000 valid placements drawn with the recording seed; the first is the pool "
+           "point nearest the pool's mean",
+    "fps-centre": "lerobot-rnd-record --placements fps-centre: furthest point sampling over the object's x, y and "
+                  "yaw (scaled to their range), starting at the centre of the range; pool = the centre + 999 "
+                  "uniform draws with the recording seed; the other coordinates (push-block / pick-place: the "
+                  "target x, y) at the centre of their range when valid (the target must be 10 cm or more from the "
+                  "object, and push-block's 22 cm or less: the centre is valid for objects 10-22 cm from it), else "
+                  "drawn uniformly from their range with the recording seed's generator until the placement is "
+                  "valid",
+}  # fmt: skip
 
 
 def override_flags(args: list[str]) -> list[str]:
@@ -45,6 +58,8 @@ class Benchmark:
         self.eval_sets: dict = {}
         self.more_work = False
         self.failed = False
+        self.suite_name = getattr(a, "suite", "metaworld")
+        self.suite = SUITES[self.suite_name]
         self.collect_from = [self._source_folder(Path(f)) for f in a.collect_from]
 
     # ------------------------------------------------------------------ budget
@@ -56,16 +71,29 @@ class Benchmark:
             raise OutOfTime(f"{what}: needs ~{seconds:.0f} s, {max(0, self.remaining()):.0f} s left")
 
     # ------------------------------------------------------------------ datasets
+    def placements_mode(self) -> str:
+        """The recorder's --placements: random, or the suite's furthest point sampling (spatial protocol)."""
+        return self.suite["fps_mode"] if self.a.protocol == "spatial" else "random"
+
     def dataset_root(self, task: str, n: int) -> tuple[Path, str]:
         a = self.a
-        mode = "fps" if a.protocol == "spatial" else "random"
-        name = f"mw_{task}_{mode}_s{a.record_seed}_n{n}"
+        name = f"{self.suite['dataset_prefix']}_{task}_{self.placements_mode()}_s{a.record_seed}_n{n}"
         return self.data_dir / name, f"local/{name}"
+
+    def make_env(self, task: str):
+        """The suite's env of ``task`` (placements and validity; nothing is rendered)."""
+        if self.suite_name == "panda":
+            from lerobot_rnd.sim.panda_env import RnDPandaEnv
+
+            return RnDPandaEnv(task, episode_length=self.a.episode_length)
+        from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
+
+        return RnDMetaWorldEnv(task, episode_length=self.a.episode_length)
 
     def record(self, task: str) -> None:
         """Record (or reuse, or extend) one dataset per demo count; smaller sets are prefixes of larger."""
         a = self.a
-        mode = "fps" if a.protocol == "spatial" else "random"
+        mode = self.placements_mode()
         prev_root = None
         self.datasets[task] = {}
         for n in sorted(a.demos):
@@ -83,7 +111,7 @@ class Benchmark:
                         shutil.copytree(prev_root, root)
                     resume = True
                 self.need(60 + 8.0 * (n - (have if resume else 0)), f"recording {root.name}")
-                argv = tool_argv("lerobot-rnd-record", a.launcher) + [
+                argv = tool_argv("lerobot-rnd-record", a.launcher) + list(self.suite["record_args"]) + [
                     "--task", task, "--episodes", str(n), "--root", str(root), "--repo-id", repo_id,
                     "--placements", mode, "--seed", str(a.record_seed),
                 ] + (["--resume"] if resume else [])  # fmt: skip
@@ -131,10 +159,8 @@ class Benchmark:
             return self.eval_sets[task]
         import numpy as np
 
-        from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
-
         a = self.a
-        env = RnDMetaWorldEnv(task, episode_length=a.episode_length)
+        env = self.make_env(task)
         sp = env.placement_space
         low, high = np.asarray(sp.low, float), np.asarray(sp.high, float)
         span = np.where(high - low > 0, high - low, 1.0)
@@ -148,7 +174,9 @@ class Benchmark:
                     placements.append([float(v) for v in env.placement])
                 out.update(seeds=seeds, placements=placements)
             else:
-                out.update(grid_eval.grid_placements(env, task, low, high, a.grid, a.grid_dims, a.eval_seed))
+                out.update(grid_eval.grid_placements(
+                    env, task, low, high, a.grid, a.grid_dims or self.suite.get("grid_dims"), a.eval_seed,
+                    n_third=getattr(a, "grid_yaws", 1), layout=self.suite["grid_layout"], others=self.suite["grid_others"]))
         finally:
             env.close()
         # held-out check against every training placement of this task
@@ -184,8 +212,8 @@ class Benchmark:
         return self.work / "runs" / self.a.protocol / method / task / f"n{n}" / f"seed{seed}"
 
     def config_file(self, method: str) -> Path:
-        files = SCALES[self.a.scale].get("config_files", {})
-        return CONFIG_DIR / files.get(method, METHODS[method][0])
+        files = suite_scale_defaults(self.suite_name, self.a.scale).get("config_files", {})
+        return self.suite["config_dir"] / files.get(method, METHODS[method][0])
 
     def method_args(self, method: str) -> list[str]:
         fam = method_family(method)
@@ -354,7 +382,7 @@ class Benchmark:
             if a.protocol == "random":
                 argv = tool_argv("lerobot-eval", a.launcher) + [
                     f"--policy.path={ckpt}", f"--policy.device={a.device}",
-                    "--env.type=rnd_mw", f"--env.task={task}", f"--env.episode_length={a.episode_length}",
+                    f"--env.type={self.suite['env_type']}", f"--env.task={task}", f"--env.episode_length={a.episode_length}",
                     f"--eval.n_episodes={k}", f"--eval.batch_size={bs}", f"--seed={a.eval_seed + start}",
                     f"--output_dir={edir}", *self.datasets[task][n]["eval_env_args"],
                 ]  # fmt: skip
@@ -362,7 +390,8 @@ class Benchmark:
                 pfile = rdir / "eval" / f"grid_{start}.json"
                 _write_json(pfile, es["placements"][start : start + k])
                 argv = grid_eval.grid_eval_argv(ckpt, a.device, task, a.episode_length, bs, a.eval_seed, pfile, edir,
-                                                env_args=self.datasets[task][n]["eval_env_args"])  # fmt: skip
+                                                env_args=self.datasets[task][n]["eval_env_args"],
+                                                env_type=self.suite["env_type"])  # fmt: skip
             st.setdefault("commands", {}).setdefault("eval", []).append(argv)
             deadline = None if self.deadline is None else self.deadline - a.exit_margin_s
             r = run_logged(argv, rdir / "eval.log", deadline=deadline, env=self.env(), dry_run=a.dry_run)
@@ -445,6 +474,9 @@ class Benchmark:
         res = _read_json(folder / "results.json")
         if res is None or not (folder / "runs").is_dir():
             raise SystemExit(f"--collect-from {folder}: not a benchmark results folder (no results.json and runs/)")
+        if res["benchmark"].get("suite", "metaworld") != self.suite_name:
+            raise SystemExit(f"--collect-from {_rel(folder)}: suite {res['benchmark'].get('suite', 'metaworld')}, "
+                             f"this benchmark's is {self.suite_name}")  # fmt: skip
         if res["benchmark"]["protocol"] != self.a.protocol:
             raise SystemExit(f"--collect-from {_rel(folder)}: protocol {res['benchmark']['protocol']}, this "
                              f"benchmark's is {self.a.protocol}")  # fmt: skip
@@ -476,7 +508,7 @@ class Benchmark:
         if st.get("status") == "failed" and not a.retry_failed:
             self.failed = True
             return
-        st.update(method=method, task=task, demos=n, seed=seed, protocol=a.protocol, scale=a.scale,
+        st.update(method=method, task=task, demos=n, seed=seed, protocol=a.protocol, scale=a.scale, suite=self.suite_name,
                   status="running", code_commit=st.get("code_commit") or git_commit())  # fmt: skip
         print(f"=== {method} / {task} / {n} demos / seed {seed}", flush=True)
         try:
@@ -531,7 +563,7 @@ class Benchmark:
                         loop = [s["loop_s"] for s in slices if s.get("loop_s") is not None]
                         runs.append({
                             "method": method, "label": METHODS[method][1], "task": task, "demos": n, "seed": seed,
-                            "protocol": a.protocol, "status": st.get("status", "pending"),
+                            "protocol": a.protocol, "suite": self.suite_name, "status": st.get("status", "pending"),
                             "steps": a.steps, "batch_size": a.batch_size,
                             "steps_done": max((s["end_step"] for s in slices), default=0),
                             "n_params": st.get("n_params"),
@@ -580,13 +612,16 @@ class Benchmark:
             "eval_episodes_per_cell": (a.eval_episodes if a.protocol == "random" else "one per valid grid point"),
             "ci": "Wilson score interval, 95%",
             "eval_placements": (
-                "lerobot-eval --seed=S: episode i resets rnd_mw with seed S+i, whose first valid draw from the "
-                "task's placement range is the placement" if a.protocol == "random" else
-                "grid over placement coordinates (see eval_sets), others at the range centre; one episode each"),
+                f"lerobot-eval --seed=S: episode i resets {self.suite['env_type']} with seed S+i, whose first valid "
+                "draw from the task's placement range is the placement" if a.protocol == "random" else
+                grid_eval.grid_description(self.suite["grid_layout"], self.suite["grid_others"], a.eval_seed)),
+            "env_type": self.suite["env_type"],
         }  # fmt: skip
+        if a.protocol == "spatial":
+            settings["demo_placements"] = DEMO_PLACEMENTS[self.placements_mode()]
         result = {
             "benchmark": {
-                "scale": a.scale, "protocol": a.protocol, "tasks": a.tasks, "demos": a.demos, "methods": a.methods,
+                "scale": a.scale, "suite": self.suite_name, "protocol": a.protocol, "tasks": a.tasks, "demos": a.demos, "methods": a.methods,
                 "seeds": a.seeds, "device": a.device, "complete": complete, "harness_version": HARNESS_VERSION,
                 "started": self.started, "written": dt.datetime.now().isoformat(timespec="seconds"),
                 "command": shlex.join([sys.executable, *sys.argv]), "train_arg": a.train_arg or [],

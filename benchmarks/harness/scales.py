@@ -67,5 +67,48 @@ COMMON_METHOD_ARGS = {
 }  # fmt: skip
 
 
+# The suites (--suite): env type, config folder, dataset names and what differs from the scales above (the
+# matched training settings -- steps, batch, seeds, horizons, per-method arguments -- are the scale's for both).
+_PANDA_CPU_FILES = {"rnd_ai": "rnd_ai_cpu.json", "rnd_a": "rnd_ai_cpu.json", "rnd_i": "rnd_ai_cpu.json",
+                    "act": "act_cpu.json", "diffusion": "diffusion_cpu.json"}  # fmt: skip
+SUITES: dict[str, dict] = {
+    "metaworld": dict(
+        env_type="rnd_mw", config_dir=CONFIG_DIR, dataset_prefix="mw", record_args=[],
+        # --protocol spatial: the recorder's fps (first demo = the pool point nearest the pool's mean, every
+        # coordinate); the grid: linspace over the range, edges included, other coordinates at the centre
+        fps_mode="fps", grid_layout="edges", grid_others="centre",
+        scales={},
+    ),
+    "panda": dict(
+        env_type="rnd_panda", config_dir=REPO_ROOT / "policies_config" / "panda", dataset_prefix="panda",
+        record_args=["--suite", "panda"],
+        # --protocol spatial: furthest-point sampling over (x, y, yaw) from the centre of the range (the
+        # recorder's fps-centre); the grid: cell centres over x, y and yaw; the target (push-block, pick-place)
+        # at the centre of its range where that is valid (10 cm or more from the object; push-block: 22 cm or
+        # less), else drawn from a seeded generator until valid (demos: the recording seed; grid cell i:
+        # eval_seed + i)
+        fps_mode="fps-centre", grid_layout="cells", grid_others="seeded", grid_dims=(0, 1, 2),
+        scales={
+            # episode_length: the recorder's limit for the expert (as MetaWorld's 300): 2.2 x the 54 steps the
+            # expert needs for pick-place, 4-7 x the other tasks' 17-30 (benchmarks/results/panda_env_speed.json)
+            "smoke": dict(tasks="lift-cube", episode_length=16, grid=3, grid_yaws=3, config_files=_PANDA_CPU_FILES),
+            "cpu": dict(tasks="lift-cube,push-block,press-button,pick-place", episode_length=120, grid=3,
+                        grid_yaws=3, config_files=_PANDA_CPU_FILES),
+        },
+    ),
+}  # fmt: skip
+
+
+def suite_scale_defaults(suite: str, scale: str) -> dict:
+    """The per-scale defaults of ``scale`` for ``suite`` (the scale's, with the suite's changes)."""
+    if suite not in SUITES:
+        raise ValueError(f"unknown suite {suite!r}; suites: {', '.join(SUITES)}")
+    per_suite = SUITES[suite]["scales"]
+    if suite != "metaworld" and scale not in per_suite:
+        raise ValueError(f"the {suite} suite has the scales {', '.join(per_suite)} (policies_config/{suite}/ has "
+                         f"no configs for the {scale} scale)")  # fmt: skip
+    return {"grid_yaws": 1, **SCALES[scale], **per_suite.get(scale, {})}
+
+
 def method_family(method: str) -> str:
     return "rnd" if method in RND_METHODS else method

@@ -15,7 +15,8 @@ Only successful episodes are kept (failures are counted and reported). ``--episo
 kept episodes the dataset should hold: with ``--resume`` recording continues where it stopped, with the
 next placements of the same deterministic sequence. Placements are MetaWorld ``rand_vec``s: ``random``
 draws them uniformly from the task's range (seeded); ``fps`` picks them by furthest point sampling over a
-seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread). ``--list-tasks`` lists the
+seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread); ``fps-centre`` starts at the centre of
+the range and spreads only the object's x, y and yaw for Panda tasks (``PlacementSequence``). ``--list-tasks`` lists the
 tasks of both suites.
 
 Each episode's parquet files are closed once it is saved, so a recorder that is stopped, even by SIGKILL,
@@ -50,6 +51,13 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_rnd.embodiment import EMBODIMENT_FILE_IN_DATASET
+from lerobot_rnd.sim.placements import (  # noqa: F401  (re-exported: scripts and tests import them from here)
+    PLACEMENT_MODES,
+    PlacementSequence,
+    complete_placement,
+    fps_centre_dims,
+    furthest_point_order,
+)
 
 logger = logging.getLogger(__name__)
 
@@ -76,19 +84,30 @@ def recorded_setting(log_settings: dict, key: str):
 
 def recorded_env_overrides(log_settings: dict) -> dict:
     """The ``RnDMetaWorldEnvConfig`` fields (``--env.type=rnd_mw``) that differ from their defaults in a MetaWorld
-    recording: the cameras, flips, image size, corner2 position and state layout its observations were made with.
+    recording: the cameras, flips, image size, corner2 position and state layout its observations were made with;
+    for a Panda recording the ``RnDPandaEnvConfig`` fields (``--env.type=rnd_panda``): cameras and image size.
 
     A policy must be evaluated on the observations it was trained on: demos recorded with
     ``--metaworld-corner2-pos`` show corner2 from another pose than the env's default, and a policy trained on them
     and evaluated with the defaults sees a view it never saw. Empty for a recording made with the defaults.
     """
+    suite = recorded_setting(log_settings, "suite")
+    size = recorded_setting(log_settings, "image_size")
+    if suite == "panda":  # --env.type=rnd_panda: cameras and image size (no flips, corner2 or state layouts)
+        from lerobot_rnd.sim.panda_env import RnDPandaEnvConfig
+
+        default = RnDPandaEnvConfig()
+        recorded = {"camera_names": recorded_setting(log_settings, "cameras"),
+                    "observation_height": None if size is None else int(size),
+                    "observation_width": None if size is None else int(size)}  # fmt: skip
+        return {k: (list(v) if isinstance(v, (list, tuple)) else v) for k, v in recorded.items()
+                if v is not None and (list(v) if isinstance(v, (list, tuple)) else v) != getattr(default, k)}  # fmt: skip
     from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
 
-    suite = recorded_setting(log_settings, "suite")
     if suite != "metaworld":
-        raise ValueError(f"recorded_env_overrides reads MetaWorld recordings (--env.type=rnd_mw); this one is {suite!r}")
+        raise ValueError(f"recorded_env_overrides reads MetaWorld (--env.type=rnd_mw) and Panda (rnd_panda) "
+                         f"recordings; this one is {suite!r}")  # fmt: skip
     default = RnDMetaWorldEnvConfig()
-    size = recorded_setting(log_settings, "image_size")
     recorded = {  # env config field -> the recording's value (None: not in the log, the env's default applies)
         "camera_names": recorded_setting(log_settings, "cameras"),
         "flip_cameras": recorded_setting(log_settings, "flip_cameras"),
@@ -190,55 +209,7 @@ def task_listing() -> str:
 # --------------------------------------------------------------------------------------------------
 # placements
 # --------------------------------------------------------------------------------------------------
-def furthest_point_order(points: np.ndarray, n: int, low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """Indices of ``n`` points chosen greedily furthest from those chosen so far (coordinates scaled
-    to the placement range; the first is the point nearest the pool's centre)."""
-    span = np.where(high - low > 0, high - low, 1.0)
-    x = (points - low) / span
-    first = int(np.argmin(np.linalg.norm(x - x.mean(0), axis=1)))
-    order = [first]
-    d = np.linalg.norm(x - x[first], axis=1)
-    for _ in range(min(n, len(x)) - 1):
-        nxt = int(np.argmax(d))
-        order.append(nxt)
-        d = np.minimum(d, np.linalg.norm(x - x[nxt], axis=1))
-    return np.asarray(order, dtype=np.int64)
-
-
-class PlacementSequence:
-    """Deterministic, indexable sequence of valid placements for one env (random or fps)."""
-
-    def __init__(self, env, mode: str = "random", seed: int = 0, fps_pool: int = 1000):
-        if mode not in ("random", "fps"):
-            raise ValueError(f"placements must be 'random' or 'fps', got {mode!r}")
-        self.env, self.mode, self.seed, self.fps_pool = env, mode, int(seed), int(fps_pool)
-        self.rng = np.random.default_rng(self.seed)
-        self._items: list[np.ndarray] = []
-        if mode == "fps":
-            pool = self._draw_valid(self.fps_pool)
-            sp = env.placement_space
-            order = furthest_point_order(np.stack(pool), len(pool), sp.low, sp.high)
-            self._items = [pool[i] for i in order]
-
-    def _draw_valid(self, n: int) -> list[np.ndarray]:
-        out, tries = [], 0
-        while len(out) < n:
-            tries += 1
-            if tries > 100 * n + 1000:
-                raise RuntimeError(f"{self.env.task}: could not draw {n} valid placements")
-            v = self.env.sample_placement(self.rng)
-            if self.env.is_valid_placement(v):
-                out.append(v)
-        return out
-
-    def __getitem__(self, i: int) -> np.ndarray:
-        if self.mode == "fps":
-            if i >= len(self._items):
-                raise IndexError(f"placement {i} beyond the fps pool of {len(self._items)}: raise --fps-pool")
-            return self._items[i]
-        while len(self._items) <= i:
-            self._items.extend(self._draw_valid(1))
-        return self._items[i]
+# furthest_point_order, PlacementSequence, ...: lerobot_rnd.sim.placements (imported above, re-exported here)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -332,8 +303,8 @@ def check_settings(settings: RecordSettings) -> RecordSettings:
         )
     if not s.cameras:
         raise SettingError("--cameras is empty: name at least one camera")
-    if s.placements not in ("random", "fps"):
-        raise SettingError(f"--placements must be random or fps, got {s.placements!r}")
+    if s.placements not in PLACEMENT_MODES:
+        raise SettingError(f"--placements must be one of {', '.join(PLACEMENT_MODES)}, got {s.placements!r}")
     minimum = {"--image-size": (s.image_size, 1), "--max-steps": (s.max_steps, 1), "--extra-steps": (s.extra_steps, 0),
                "--fps-pool": (s.fps_pool, 1), "--image-writer-threads": (s.image_writer_threads, 0),
                "--max-attempts": (1 if s.max_attempts is None else s.max_attempts, 1)}  # fmt: skip
@@ -722,7 +693,11 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings | None:
     )
     p.add_argument("--root", help="dataset folder (must not exist unless --resume); required")
     p.add_argument("--repo-id", help="dataset repo id, e.g. local/mw_reach; required")
-    p.add_argument("--placements", choices=["random", "fps"], default=d.placements)
+    p.add_argument("--placements", choices=list(PLACEMENT_MODES), default=d.placements,
+                   help="random (seeded, uniform), fps (furthest point sampling over a seeded pool, every "
+                        "coordinate, from the pool point nearest its mean) or fps-centre (furthest point sampling "
+                        "from the centre of the range over the object's x, y, yaw for Panda tasks; the other "
+                        "coordinates at their centre when valid, else seeded draws)")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument(
         "--fps-pool", type=int, default=d.fps_pool, help="candidate pool size for --placements fps"

@@ -1,0 +1,209 @@
+"""benchmarks/run_benchmark.py --suite panda (fast): the commands it would run, furthest point sampling from the
+centre of the placement range, the 3-D evaluation grid (x, y, yaw) and its heat maps."""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks.harness import cli, reports
+from benchmarks.harness.grid_eval import grid_axis, grid_placements
+from benchmarks.harness.runs import Benchmark
+from lerobot_rnd.sim.placements import PlacementSequence, complete_placement, furthest_point_order
+
+REPO = Path(__file__).resolve().parents[1]
+SCRIPT = REPO / "benchmarks" / "run_benchmark.py"
+
+
+def _needs_panda():
+    pytest.importorskip("gym_hil", reason="the Panda scenes need gym-hil's assets")
+
+
+def _dry_run(tmp_path, *extra):
+    out = subprocess.run(
+        [sys.executable, str(SCRIPT), "--out", str(tmp_path / "out"), "--work-dir", str(tmp_path / "work"),
+         "--data-dir", str(tmp_path / "data"), "--dry-run", *extra],
+        capture_output=True, text=True, timeout=300, cwd=REPO,
+    )  # fmt: skip
+    assert out.returncode == 0, out.stdout + out.stderr
+    return [line[2:] for line in out.stdout.splitlines() if line.startswith("$ ")]
+
+
+# ---------------------------------------------------------------------------------------------- commands
+def test_panda_spatial_dry_run_records_fps_from_the_centre_trains_panda_configs_and_evaluates_rnd_panda(tmp_path):
+    _needs_panda()
+    cmds = _dry_run(tmp_path, "--suite", "panda", "--scale", "cpu", "--protocol", "spatial", "--tasks", "push-block",
+                    "--demos", "2,4", "--methods", "rnd_ai,act,diffusion")  # fmt: skip
+    rec = [c for c in cmds if "lerobot-rnd-record" in c]
+    assert len(rec) == 2
+    for c in rec:
+        assert "--suite panda" in c and "--task push-block" in c and "--placements fps-centre" in c
+    assert "panda_push-block_fps-centre_s0_n4" in rec[1] and "--resume" in rec[1]
+    assert len([c for c in cmds if "lerobot-train" in c]) == 6  # 3 methods x 2 demo counts
+    train = {c.split("--job_name=")[1].split("_push")[0]: c for c in cmds if "lerobot-train" in c}
+    assert set(train) == {"rnd_ai", "act", "diffusion"}
+    for method, c in train.items():
+        assert f"policies_config/panda/{method}_cpu.json" in c and "--env.task=push-block" in c
+        assert "--env.episode_length=120" in c and "policies_config/metaworld" not in c
+    ev = [c for c in cmds if "_grid_eval" in c]
+    assert all("--env-type=rnd_panda" in c and "--task=push-block" in c for c in ev)
+    # 3 x 3 positions x 3 yaws = 27 cells, none invalid, in chunks of 10, for 3 methods x 2 demo counts
+    assert len(ev) == 18 and sum("ep0020-0026" in c for c in ev) == 6
+
+
+def test_panda_random_dry_run_evaluates_with_rnd_panda(tmp_path):
+    _needs_panda()
+    cmds = _dry_run(tmp_path, "--suite", "panda", "--scale", "smoke", "--tasks", "pick-place", "--methods", "act")
+    rec = [c for c in cmds if "lerobot-rnd-record" in c]
+    assert len(rec) == 1 and "--suite panda" in rec[0] and "--placements random" in rec[0]
+    (train,) = [c for c in cmds if "lerobot-train" in c]
+    assert "policies_config/panda/act_cpu.json" in train and "--policy.dim_model=64" in train  # smoke sizes
+    (ev,) = [c for c in cmds if "lerobot-eval" in c]
+    assert "--env.type=rnd_panda" in ev and "--env.task=pick-place" in ev and "--seed=1000" in ev
+    assert "rnd_mw" not in " ".join(cmds)
+
+
+def test_metaworld_spatial_keeps_the_recorders_fps(tmp_path):
+    cmds = _dry_run(tmp_path, "--scale", "smoke", "--protocol", "spatial", "--methods", "act")
+    (rec,) = [c for c in cmds if "lerobot-rnd-record" in c]
+    assert "--placements fps " in rec + " " and "--suite" not in rec and "mw_reach-v3_fps_s0_n3" in rec
+    (ev,) = [c for c in cmds if "_grid_eval" in c]
+    assert "--env-type" not in ev and "ep0000-0008" in ev  # 3 x 3 grid over the goal's x, y
+
+
+def test_panda_suite_refuses_metaworld_tasks_and_the_gpu_scale():
+    with pytest.raises(SystemExit):
+        cli.parse_args(["--suite", "panda", "--scale", "smoke", "--tasks", "reach-v3"])
+    with pytest.raises(SystemExit):
+        cli.parse_args(["--suite", "panda", "--scale", "gpu"])
+    a = cli.parse_args(["--suite", "panda", "--scale", "cpu"])
+    assert a.tasks == ["lift-cube", "push-block", "press-button", "pick-place"] and a.episode_length == 120
+    assert a.out.endswith("benchmarks/results/panda_cpu") and a.grid == 3 and a.grid_yaws == 3
+    assert cli.parse_args(["--scale", "cpu"]).out.endswith("benchmarks/results/cpu")  # MetaWorld unchanged
+
+
+def test_panda_demos_are_evaluated_with_their_cameras():
+    from lerobot_rnd.sim.record import recorded_env_args
+
+    assert recorded_env_args({"suite": "panda", "cameras": ["front", "wrist"], "image_size": 128}) == []
+    assert recorded_env_args({"suite": "panda", "cameras": ["front"], "image_size": 96}) == [
+        "--env.camera_names=[front]", "--env.observation_height=96", "--env.observation_width=96"]  # fmt: skip
+
+
+# ---------------------------------------------------------------------------------------------- placements
+def test_furthest_point_order_starts_at_the_centre():
+    """A hand-made pool in a 2 x 1 range: from the centre (1.0, 0.5) the furthest point is (1.9, 0.9), then
+    (0.2, 0.1) (furthest from both), then (0.6, 0.3); the pool-mean start (the default) begins elsewhere."""
+    low, high = np.array([0.0, 0.0]), np.array([2.0, 1.0])
+    pts = np.array([[0.2, 0.1], [0.4, 0.1], [0.2, 0.2], [0.6, 0.3], [1.0, 0.5], [1.9, 0.9]])
+    order = furthest_point_order(pts, 4, low, high, start=(low + high) / 2)
+    assert order.tolist() == [4, 5, 0, 3]
+    assert furthest_point_order(pts, 1, low, high).tolist() == [3]  # nearest the pool's mean (0.72, 0.35)
+
+
+class _FakePushEnv:
+    """push-block's placement layout [x, y, yaw, target x, target y]; valid = target 10 cm or more away."""
+
+    task = "push-block"
+
+    class placement_space:  # noqa: N801 - mimics a gymnasium Box
+        low = np.array([0.36, -0.12, -math.pi / 4, 0.32, -0.2])
+        high = np.array([0.54, 0.12, math.pi / 4, 0.58, 0.2])
+
+    def is_valid_placement(self, p):
+        p = np.asarray(p)
+        lo, hi = self.placement_space.low, self.placement_space.high
+        return bool(np.all(p >= lo - 1e-9) and np.all(p <= hi + 1e-9) and np.linalg.norm(p[3:5] - p[:2]) >= 0.1)
+
+
+def test_fps_centre_sequence_starts_at_the_centre_and_spreads_position_and_yaw():
+    env = _FakePushEnv()
+    lo, hi = env.placement_space.low, env.placement_space.high
+    seq = PlacementSequence(env, "fps-centre", seed=0, fps_pool=300)
+    first = seq[0]
+    np.testing.assert_allclose(first[:3], ((lo + hi) / 2)[:3])  # the centre of x, y, yaw
+    assert env.is_valid_placement(first)  # the target (centre invalid there) drawn until valid
+    spread = (np.array([seq[i] for i in range(1, 9)])[:, :3] - lo[:3]) / (hi - lo)[:3]
+    assert np.all(np.abs(spread - 0.5).max(axis=1) > 0.35)  # the next ones near the faces of the (x, y, yaw) box
+    assert {bool(s) for s in spread[:, 2] > 0.5} == {True, False}  # both signs of yaw
+    again = PlacementSequence(env, "fps-centre", seed=0, fps_pool=300)
+    np.testing.assert_array_equal(np.array([again[i] for i in range(9)]), np.array([seq[i] for i in range(9)]))
+    # the target stays at the centre of its range where that is valid
+    far = complete_placement(env, np.array([0.54, 0.12, 0.0, 0.0, 0.0]), (0, 1, 2), np.random.default_rng(0))
+    np.testing.assert_allclose(far[3:], [0.45, 0.0])
+
+
+def test_panda_grid_varies_x_y_and_yaw_in_at_least_25_cells(tmp_path):
+    _needs_panda()
+    a = cli.parse_args(["--suite", "panda", "--scale", "cpu", "--protocol", "spatial", "--tasks", "push-block",
+                        "--out", str(tmp_path / "o"), "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip
+    es = Benchmark(a).eval_set("push-block")
+    P = np.asarray(es["placements"])
+    assert len(P) >= 25 and len(P) + es["n_invalid"] == 27 and es["grid_dims"] == [0, 1, 2]
+    for d in (0, 1, 2):
+        assert len(np.unique(P[:, d].round(6))) == 3  # x, y and yaw each take three values
+    assert np.ptp(P[:, 2]) > math.radians(50)  # yaw from -30 to +30 degrees
+    assert sorted(map(tuple, es["cells"])) == sorted({(c[0], c[1], c[2]) for c in es["cells"]})  # distinct cells
+    assert es["other_coordinates"] == "seeded" and len(es["other_seeds"]) == len(P)
+    # deterministic: the same grid again
+    assert Benchmark(a).eval_set("push-block")["placements"] == es["placements"]
+
+
+def test_grid_axis_layouts():
+    assert grid_axis(0.0, 1.0, 3, "edges") == [0.0, 0.5, 1.0]
+    np.testing.assert_allclose(grid_axis(0.0, 1.0, 4, "cells"), [0.125, 0.375, 0.625, 0.875])
+    with pytest.raises(ValueError):
+        grid_axis(0.0, 1.0, 3, "corners")
+
+
+def test_a_3d_grid_skips_invalid_cells_and_counts_them():
+    env = _FakePushEnv()
+    lo, hi = env.placement_space.low, env.placement_space.high
+    g = grid_placements(env, "push-block", lo, hi, 3, [0, 1, 2], 1000, n_third=3, layout="edges", others="centre")
+    # target at its centre (0.45, 0): invalid for the three block positions within 10 cm of it, at every yaw
+    assert len(g["placements"]) + g["n_invalid"] == 27 and g["n_invalid"] == 9
+    assert all(len(c) == 3 for c in g["cells"])
+
+
+# ---------------------------------------------------------------------------------------------- heat maps
+def _fake_3d_results() -> dict:
+    yaws = [-math.pi / 6, 0.0, math.pi / 6]
+    xs, ys = [0.39, 0.45, 0.51], [-0.08, 0.0, 0.08]
+    cells, placements = [], []
+    for iz, z in enumerate(yaws):
+        for iy, y in enumerate(ys):
+            for ix, x in enumerate(xs):
+                if (iz, iy, ix) == (1, 1, 1):
+                    continue  # an invalid cell
+                cells.append([iy, ix, iz])
+                placements.append([x, y, z, 0.45, 0.15])
+    runs = []
+    for m in ("rnd_ai", "act"):
+        succ = [iz == 0 for _, _, iz in cells] if m == "rnd_ai" else [ix == 2 for _, ix, _ in cells]
+        runs.append({"method": m, "task": "push-block", "demos": 2, "seed": 0, "eval_episodes": len(succ),
+                     "successes": sum(succ), "per_episode_success": succ})  # fmt: skip
+    return {
+        "benchmark": {"scale": "cpu", "suite": "panda", "protocol": "spatial", "tasks": ["push-block"], "demos": [2],
+                      "methods": ["rnd_ai", "act"]},
+        "eval_sets": {"push-block": {"grid_dims": [0, 1, 2], "grid_x": xs, "grid_y": ys, "grid_z": yaws,
+                                     "cells": cells, "placements": placements, "n_invalid": 1}},
+        "datasets": {"push-block": {"2": {"placements": [[0.45, 0.0, 0.0, 0.53, 0.16], [0.37, 0.11, -0.76, 0.45, 0.0]]}}},
+        "runs": runs,
+    }  # fmt: skip
+
+
+def test_3d_heat_map_draws_one_xy_map_per_yaw(tmp_path):
+    res = _fake_3d_results()
+    titles = reports.plot_heatmap_3d(res, "push-block", tmp_path / "heat.png")
+    assert (tmp_path / "heat.png").stat().st_size > 5000
+    assert len(titles) == 2 * 3  # methods x yaws (one demo count)
+    assert titles[0] == "R&D-AI, 2 demos, yaw -30°: 100% of 9"  # R&D-AI succeeds at -30 degrees only
+    assert titles[1] == "R&D-AI, 2 demos, yaw +0°: 0% of 8"  # the invalid centre cell is not counted
+    assert titles[5] == "ACT, 2 demos, yaw +30°: 33% of 9"
+    reports.plot_heatmap(res, "push-block", tmp_path / "via_dispatch.png")  # plot_heatmap hands 3-D grids over
+    assert (tmp_path / "via_dispatch.png").exists()
