@@ -6,9 +6,9 @@ ablation JSON (`run_ablation.py`'s, every row with `per_episode_success` on the 
 successes, how many it shares with the reference row and how many only it solves, then per episode how many rows
 solve it. With `--trace` (a `trace_rollouts.py` JSON on the same seeds) each episode also shows its goal.
 
-    python benchmarks/episode_overlap.py --ablation benchmarks/results/ablation_cpu_tcp_3000.json \
-        --reference current_defaults --trace benchmarks/results/trace_reach_current_defaults.json \
-        --out benchmarks/results/episode_overlap_cpu_tcp_3000.json
+    python benchmarks/episode_overlap.py --ablation benchmarks/results/archive/ablation_cpu_tcp_3000.json \
+        --reference current_defaults --trace benchmarks/results/archive/trace_reach_current_defaults.json \
+        --out benchmarks/results/archive/episode_overlap_cpu_tcp_3000.json
 """
 
 from __future__ import annotations

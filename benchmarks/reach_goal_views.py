@@ -53,7 +53,7 @@ def main(argv=None) -> int:
     p.add_argument("--placements", type=int, default=40)
     p.add_argument("--seed", type=int, default=500)
     p.add_argument("--size", type=int, default=128)
-    p.add_argument("--out", default="benchmarks/results/reach_goal_views.json")
+    p.add_argument("--out", default="benchmarks/results/archive/reach_goal_views.json")
     p.add_argument("--image", default="docs/images/reach_goal_views.png")
     a = p.parse_args(argv)
 

@@ -15,7 +15,7 @@ Finished checkpoints are skipped, so the script resumes; run it again as more ch
 
     python benchmarks/validation_curve.py \
         --train-dir outputs/benchmark/cpu_9000/runs/random/rnd_ai/reach-v3/n10/seed0/train \
-        --out benchmarks/results/validation_curve_cpu_9000
+        --out benchmarks/results/archive/validation_curve_cpu_9000
 """
 
 from __future__ import annotations

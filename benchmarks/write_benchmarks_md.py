@@ -1,40 +1,273 @@
 #!/usr/bin/env python
-"""Write the CPU-results section of docs/BENCHMARKS.md from the committed JSON.
+"""Write docs/BENCHMARKS.md's current results and benchmarks/results/archive/ARCHIVE.md from the committed JSON.
 
-Nothing in that section is typed by hand: it is rebuilt from
+The block of docs/BENCHMARKS.md between `<!-- cpu-results:start -->` and `<!-- cpu-results:end -->` is rebuilt
+from the *current* results (benchmarks/results/INDEX.md says which those are; benchmarks/write_results_index.py
+holds the statuses):
 
-  benchmarks/results/train_step_cpu.json    benchmarks/bench_train_step.py (where a training step goes)
-  benchmarks/results/cpu/results.json       benchmarks/run_benchmark.py --scale cpu (success vs ACT / DP)
-  benchmarks/results/cpu_3000/results.json  the same at 3,000 training steps (--steps 3000 --out ...cpu_3000)
-  benchmarks/results/ablation_cpu*.json     benchmarks/run_ablation.py [--out ...] (validation seeds, reach-v3)
-  benchmarks/results/validation_curve_*.json  benchmarks/validation_curve.py (success against training step)
-  benchmarks/results/cpu/train_placements.json  benchmarks/eval_train_placements.py (do policies fit their demos?)
-  benchmarks/results/cpu_reach_hand_expert/   reach-v3 runs on the earlier demos (MetaWorld's hand-target expert)
-  benchmarks/results/quickstart*_cpu.json   examples/quickstart.sh's summary.json, copied (one per task)
-  benchmarks/results/inference_cpu_tier.json  benchmarks/bench_inference.py --configs cpu (chunk latency)
-  benchmarks/results/one_step_sampling*.json  benchmarks/sampler_steps.py (1 vs 4 denoising steps, same episodes)
-  benchmarks/results/device_check_*.json    benchmarks/device_check.py (GPU lease)
+  one_step_sampling_test.json              benchmarks/sampler_steps.py: the shipped CPU tier (1 denoising step)
+                                           on the CPU benchmark's R&D-AI checkpoints, test seeds
+  cpu_3000_drawer/, cpu_3000_button/,      benchmarks/run_benchmark.py --scale cpu --steps 3000: ACT and Diffusion
+  cpu_3000/, cpu_3000_reach_seeds/,        Policy (and the R&D-AI runs, sampled with 4 steps), 10 and 20 demos
+  cpu_3000_reach_n20/, cpu_6000_reach_n20/
+  reach_n20_6000steps_test.json            R&D-AI, 20 demos, 6,000 steps, 1 denoising step
+  train_step_cpu*.json                     benchmarks/bench_train_step.py (one per CPU kind)
+  inference_cpu_tier_avx512.json           benchmarks/bench_inference.py --configs cpu
+  quickstart_drawer_cpu.json               examples/quickstart.sh's summary.json
 
-whichever exist, between the markers `<!-- cpu-results:start -->` and `<!-- cpu-results:end -->`; the plots of
-the CPU benchmark are copied to docs/images/.
+and benchmarks/results/archive/ARCHIVE.md is rebuilt from the archived JSON that have no results.md of their own
+(ablations, validation curves, traces' sources, earlier quickstarts and inference timings). Nothing in either
+is typed by hand.
 
     python benchmarks/write_benchmarks_md.py
 """
 
 import json
-import shutil
+import math
 import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 RESULTS = REPO / "benchmarks" / "results"
+ARCHIVE = RESULTS / "archive"
 DOC = REPO / "docs" / "BENCHMARKS.md"
+ARCHIVE_DOC = ARCHIVE / "ARCHIVE.md"
 START, END = "<!-- cpu-results:start -->", "<!-- cpu-results:end -->"
+
+# The last version of the code with the config switches retired from RnDConfig (their ablation rows are archived).
+TAG = "ablation-switches-2026-12"
+TAG_COMMIT = "b8b7dad"  # the commit the tag points to
+
+METHODS = (("rnd_ai", "R&D-AI (`rnd_ai_cpu.json`)"), ("act", "ACT (`act_cpu.json`)"),
+           ("diffusion", "Diffusion Policy (`diffusion_cpu.json`)"))  # fmt: skip
+# The headline tasks and the run_benchmark.py folder whose ACT / Diffusion Policy runs they use (10 demos, seed 0).
+HEADLINE = (("drawer-close-v3", "cpu_3000_drawer"), ("button-press-topdown-v3", "cpu_3000_button"),
+            ("reach-v3", "cpu_3000"))  # fmt: skip
+# The current run_benchmark.py folders. Their R&D-AI runs were trained and evaluated before the CPU tier moved to
+# one denoising step (commit d916658), so they were sampled with 4; one_step_sampling_test.json re-evaluates
+# those checkpoints with 1.
+CURRENT_FOLDERS = ("cpu_3000_drawer", "cpu_3000_button", "cpu_3000", "cpu_3000_reach_seeds", "cpu_3000_reach_n20",
+                   "cpu_6000_reach_n20")  # fmt: skip
+FOUR_STEP_FOLDERS = ("cpu_3000_drawer", "cpu_3000_button", "cpu_3000", "cpu_3000_reach_seeds", "cpu_3000_reach_n20")
+# Runs of a current folder that measure a superseded config: (folder, method, task) -> what they measured.
+SUPERSEDED_RUNS = {("cpu_3000", "rnd_ai", "reach-v3"): "the earlier linear patch embedding"}
 
 
 def _load(path: Path):
     return json.loads(path.read_text()) if path.exists() else None
+
+
+def wilson(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
+    """Wilson score 95% interval of a success rate."""
+    if n == 0:
+        return 0.0, 1.0
+    p = successes / n
+    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def cell(successes: int, n: int, bold: bool = False) -> str:
+    """`k/n (lo-hi%)`, the interval a Wilson 95% one."""
+    lo, hi = wilson(successes, n)
+    text = f"{successes}/{n}"
+    return f"{'**' + text + '**' if bold else text} ({100 * lo:.0f}-{100 * hi:.0f}%)"
+
+
+def folder_run(folder: str, method: str, task: str, demos: int = 10, seed: int = 0) -> dict | None:
+    """One run of a run_benchmark.py results folder (its entry in results.json), or None."""
+    res = _load(RESULTS / folder / "results.json") or {"runs": []}
+    return next((r for r in res["runs"] if r["method"] == method and r["task"] == task and r["demos"] == demos
+                 and r.get("seed", 0) == seed and r.get("eval_episodes")), None)  # fmt: skip
+
+
+def sampled_entry(res: dict, task: str, steps: int) -> dict | None:
+    """The sampler_steps.py entry of one task at one number of denoising steps."""
+    return next((e for e in res["entries"] if e["task"] == task and e["num_inference_steps"] == steps), None)
+
+
+def headline_section(one_step: dict) -> list[str]:
+    """Success per task of the shipped CPU configs: R&D-AI with 1 step, ACT and DP from the same benchmark runs."""
+    heads = [f"`{task}`" for task, _ in HEADLINE]
+    lines = [
+        "### Success on MetaWorld (10 demos, 3,000 training steps, 50 test episodes per cell)",
+        "",
+        "Successes on evaluation seeds 1000-1049 with Wilson 95% intervals; the same demos and seeds for every "
+        "method, batch 8, one training seed per cell. R&D-AI is the shipped CPU tier sampled with its one denoising "
+        "step ([`one_step_sampling_test.json`](../benchmarks/results/one_step_sampling_test.json), which re-evaluates "
+        "the benchmark's R&D-AI checkpoints); ACT and Diffusion Policy are the runs of "
+        + ", ".join(f"[`{f}`](../benchmarks/results/{f}/results.md)" for _, f in HEADLINE) + ".",
+        "",
+        "| method | params | " + " | ".join(heads) + " | all three |",
+        "| --- | ---: |" + " ---: |" * (len(HEADLINE) + 1),
+    ]
+    rows = {}
+    for method, label in METHODS:
+        cells, params = [], None
+        for task, folder in HEADLINE:
+            if method == "rnd_ai":
+                e = sampled_entry(one_step, task, 1)
+                run = _load(RESULTS / e["source"].removeprefix("benchmarks/results/")) if e else None
+                cells.append((e["successes"], e["episodes"]) if e else None)
+                params = params or (run or {}).get("n_params")
+            else:
+                r = folder_run(folder, method, task)
+                cells.append((r["successes"], r["eval_episodes"]) if r else None)
+                params = params or (r or {}).get("n_params")
+        rows[method] = (label, params, cells)
+    best = [max((c[i][0] for _, _, c in rows.values() if c[i]), default=None) for i in range(len(HEADLINE))]
+    for method, (label, params, cells) in rows.items():
+        text = [cell(*c, bold=c[0] == best[i]) if c else "not run" for i, c in enumerate(cells)]
+        done = [c for c in cells if c]
+        total = cell(sum(c[0] for c in done), sum(c[1] for c in done)) if len(done) == len(cells) else "–"
+        lines.append(f"| {label} | {params / 1e6:.1f}M | " + " | ".join(text) + f" | {total} |" if params else
+                     f"| {label} | – | " + " | ".join(text) + f" | {total} |")  # fmt: skip
+    reach = sampled_entry(one_step, "reach-v3", 1)
+    if reach:
+        seed = reach["name"].rsplit("seed", 1)[-1]
+        act0, act1 = folder_run("cpu_3000", "act", "reach-v3"), folder_run("cpu_3000_reach_seeds", "act", "reach-v3", seed=1)
+        rnd0 = folder_run("cpu_3000_reach_seeds", "rnd_ai", "reach-v3")
+        rnd1 = folder_run("cpu_3000_reach_seeds", "rnd_ai", "reach-v3", seed=1)
+        line = (f"R&D-AI's reach-v3 checkpoint is training seed {seed} (ACT's and Diffusion Policy's are seed 0). "
+                "Bold: the most successes in the column.")
+        if act0 and act1 and rnd0 and rnd1:
+            line += (f" Over two training seeds on reach-v3 ([`cpu_3000_reach_seeds`](../benchmarks/results/"
+                     f"cpu_3000_reach_seeds/results.md), R&D-AI sampled with 4 steps there): R&D-AI "
+                     f"{cell(rnd0['successes'] + rnd1['successes'], rnd0['eval_episodes'] + rnd1['eval_episodes'])}, "
+                     f"ACT {cell(act0['successes'] + act1['successes'], act0['eval_episodes'] + act1['eval_episodes'])}.")
+        lines += ["", line]
+    return lines
+
+
+def reach_n20_section(n20_6000: dict | None) -> list[str]:
+    """reach-v3 with 20 demos: 3,000 steps for every method, 6,000 for R&D-AI and ACT."""
+    lines = [
+        "### reach-v3 with 20 demos",
+        "",
+        "The 10-demo set extended to 20 (the first 10 are the same demos), the same test seeds 1000-1049: "
+        "[`cpu_3000_reach_n20`](../benchmarks/results/cpu_3000_reach_n20/results.md) (3,000 steps), "
+        "[`cpu_6000_reach_n20`](../benchmarks/results/cpu_6000_reach_n20/results.md) (ACT, 6,000 steps) and "
+        "[`reach_n20_6000steps_test.json`](../benchmarks/results/reach_n20_6000steps_test.json) (R&D-AI, 6,000 steps, "
+        "one denoising step).",
+        "",
+        "| method | 3,000 steps | 6,000 steps |",
+        "| --- | ---: | ---: |",
+    ]
+    long = {}
+    if n20_6000:
+        e = sampled_entry(n20_6000, "reach-v3", 1)
+        long["rnd_ai"] = (e["successes"], e["episodes"]) if e else None
+    r = folder_run("cpu_6000_reach_n20", "act", "reach-v3", demos=20)
+    long["act"] = (r["successes"], r["eval_episodes"]) if r else None
+    for method, label in METHODS:
+        r = folder_run("cpu_3000_reach_n20", method, "reach-v3", demos=20)
+        short = cell(r["successes"], r["eval_episodes"]) + (" (4 steps)" if method == "rnd_ai" else "") if r else "not run"
+        lines.append(f"| {label} | {short} | {cell(*long[method]) if long.get(method) else 'not run'} |")
+    if long.get("rnd_ai") and long.get("act"):
+        (k_r, n_r), (k_a, n_a) = long["rnd_ai"], long["act"]
+        lines += ["", f"**Here R&D-AI loses**: trained 6,000 steps on 20 demos, ACT succeeds on {k_a}/{n_a} and "
+                      f"R&D-AI on {k_r}/{n_r}. [docs/REACH.md](REACH.md) has the investigation."]  # fmt: skip
+    return lines
+
+
+def cost_section(train_steps: list[tuple[str, dict]], inference: tuple[str, dict] | None) -> list[str]:
+    """Training step and inference chunk per method, each as a ratio to ACT measured in the same run."""
+    lines = [
+        "### Cost: a training step and an action chunk, as ratios to ACT in the same run",
+        "",
+        "Medians on 2 CPU cores. A training step is batch 8 with data loading in the main process "
+        "(`benchmarks/bench_train_step.py`); a chunk is one `predict_action_chunk` call at batch 1 "
+        "(`benchmarks/bench_inference.py --configs cpu`). Absolute times move with the machine's load between runs; "
+        "the ratios are measured in one run each.",
+        "",
+        "| measurement | JSON | R&D-AI | ACT | Diffusion Policy |",
+        "| --- | --- | ---: | ---: | ---: |",
+    ]
+    for name, res in train_steps:
+        by = {r["method"]: r for r in res["results"]}
+        act = by.get("act_cpu")
+        isa = res["machine"].get("cpu_capability", "")
+        cells = []
+        for method in ("rnd_ai_cpu", "act_cpu", "diffusion_cpu"):
+            r = by.get(method)
+            cells.append(f"{r['median_total_s']:.2f} s ({r['median_total_s'] / act['median_total_s']:.2f}x)"
+                         if r and act else "–")  # fmt: skip
+        lines.append(f"| training step, {isa} | [`{name}`](../benchmarks/results/{name}) | " + " | ".join(cells) + " |")
+    dp_note = ""
+    if inference:
+        name, res = inference
+        by = {r["method"]: r for r in res["results"]}
+        act = by.get("ACT")
+        isa = res.get("machine", {}).get("cpu_capability", "")
+        cells = [f"{by[m]['median_ms']:.0f} ms ({by[m]['median_ms'] / act['median_ms']:.1f}x)" if m in by and act else "–"
+                 for m in ("R&D-AI", "ACT", "Diffusion Policy")]  # fmt: skip
+        lines.append(f"| one action chunk, {isa} | [`{name}`](../benchmarks/results/{name}) | " + " | ".join(cells) + " |")
+        if "Diffusion Policy" in by:
+            dp = by["Diffusion Policy"]
+            dp_note = (f" The inference benchmark times Diffusion Policy at LeRobot's default size ({dp['config']}; "
+                       f"{dp['params'] / 1e6:.1f}M parameters), not `diffusion_cpu.json`'s.")
+        rnd = next((b for b in res.get("rnd_breakdown") or [] if b.get("config") == "cpu"), None)
+        if rnd:
+            dp_note += (f" One R&D-AI chunk (a separate timed pass): rendering {rnd['render_ms']:.0f} ms, the network "
+                        f"{rnd['network_ms']:.0f} ms, the SVD registration {rnd['svd_ms']:.0f} ms.")
+    lines += ["", "R&D-AI is `rnd_ai_cpu.json` (bf16 autocast where the CPU has native bf16, float32 on AVX2), "
+                  "ACT `act_cpu.json`, Diffusion Policy `diffusion_cpu.json` in the training rows." + dp_note]
+    for name, res in train_steps:
+        lines += ["", f"<details><summary>Where a training step goes: {name}</summary>", "",
+                  *train_step_section(res, name), "", "</details>"]
+    return lines
+
+
+def runs_section(one_step: dict | None, n20_6000: dict | None) -> list[str]:
+    """Every current run: one line each, with its training length, sampling steps and JSON."""
+    lines = [
+        "### Every current run",
+        "",
+        "Each benchmark folder's `results.md` has its loss curves and plots, and each run JSON its exact "
+        "`lerobot-train` / `lerobot-eval` commands. *Denoising steps* is what R&D-AI sampled with: the benchmark "
+        "folders' R&D-AI runs predate the CPU tier's one-step default and used 4. Not listed, as superseded: "
+        + "; ".join(f"`{f}`'s {m} run on {t} ({why})" for (f, m, t), why in SUPERSEDED_RUNS.items()) + ".",
+        "",
+        "| method | task | demos | training seed | steps | denoising steps | success | params | train loop | final loss | source |",
+        "| --- | --- | ---: | ---: | ---: | ---: | --- | ---: | ---: | ---: | --- |",
+    ]
+    labels = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}
+
+    def row(method, task, demos, seed, steps, denoise, k, n, params, minutes, loss, link):
+        return (f"| {labels.get(method, method)} | {task} | {demos} | {seed} | {steps} | {denoise} | {cell(k, n)} | "
+                f"{f'{params / 1e6:.1f}M' if params else '–'} | {f'{minutes:.0f} min' if minutes else '–'} | "
+                f"{f'{loss:.3f}' if loss is not None else '–'} | {link} |")
+
+    for folder in CURRENT_FOLDERS:
+        res = _load(RESULTS / folder / "results.json") or {"runs": []}
+        link = f"[`{folder}`](../benchmarks/results/{folder}/results.md)"
+        for r in res["runs"]:
+            if r.get("collected_from") or not r.get("eval_episodes") or (folder, r["method"], r["task"]) in SUPERSEDED_RUNS:
+                continue  # a run another folder holds is listed there
+            rnd = r["method"].startswith("rnd")
+            denoise = ("4" if folder in FOUR_STEP_FOLDERS else "1") if rnd else "–"
+            curve = r.get("loss_curve") or []
+            minutes = r["train_seconds"] / 60 if r.get("train_seconds") else None
+            lines.append(row(r["method"], r["task"], r["demos"], r.get("seed", 0), r.get("steps") or "–", denoise,
+                             r["successes"], r["eval_episodes"], r.get("n_params"), minutes,
+                             curve[-1][1] if curve else None, link))  # fmt: skip
+    for name, res in (("one_step_sampling_test.json", one_step), ("reach_n20_6000steps_test.json", n20_6000)):
+        for e in (res or {}).get("entries", []):
+            if e["num_inference_steps"] != 1:
+                continue
+            run = _load(REPO / e["source"]) if e["source"].endswith(".json") else None
+            if run:
+                demos, seed, steps = run["demos"], run.get("seed", 0), run["loss_curve"][-1][0]
+            else:  # a checkpoint given by path: .../checkpoints/<step>/pretrained_model of a run on n<demos> demos
+                parts = Path(e["checkpoint"]).parts
+                steps = int(parts[-2]) if parts[-2].isdigit() else "–"
+                demos = 20 if "n20" in e["checkpoint"] else 10
+                seed = 0
+            lines.append(row("rnd_ai", e["task"], demos, seed, steps, e["num_inference_steps"], e["successes"],
+                             e["episodes"], (run or {}).get("n_params"), None, None,
+                             f"[`{name}`](../benchmarks/results/{name})"))  # fmt: skip
+    return lines
 
 
 def train_step_section(res: dict, name: str = "train_step_cpu.json") -> list[str]:
@@ -69,78 +302,6 @@ def train_step_section(res: dict, name: str = "train_step_cpu.json") -> list[str
             + f" | {r['median_total_s']:.3f} | {model:.3f} ({ref_model / model:.1f}x) | {r['speedup_vs_reference']:.2f} |"
             + (f" {r['median_data_upstream_s']:.3f} |" if upstream else "")
         )
-    return lines
-
-
-def cpu_benchmark_section(res: dict, folder: str = "cpu", images: str = "cpu") -> list[str]:
-    b = res["benchmark"]
-    runs = res["runs"]
-    steps = res["settings"]["matched"]["steps"]
-    command = b.get("command", "")
-    if "benchmarks/run_benchmark.py" in command:  # the invocation that wrote results.json, interpreter dropped
-        command = "python benchmarks/run_benchmark.py" + command.split("benchmarks/run_benchmark.py", 1)[1]
-    else:
-        command = ("python benchmarks/run_benchmark.py --scale cpu --tasks " + ",".join(b["tasks"]) + " --methods "
-                   + ",".join(b["methods"]) + f" --steps {steps} --out benchmarks/results/{folder} --resume")
-    switches = [spec.partition(":")[2] for spec in b.get("train_arg") or []]
-    title = f"CPU scale, {steps} training steps" + (f", R&D trained with `{' '.join(switches)}`" if switches else "")
-    lines = [
-        f"### R&D vs ACT vs Diffusion Policy on MetaWorld ({title}): `benchmarks/results/{folder}`",
-        "",
-        f"`{command}` (each run's exact lerobot-train / lerobot-eval commands are in its JSON)",
-        "",
-        (("Trained only (`--train-only`): not evaluated on the evaluation seeds; its validation-seed result, if "
-          "any, is in the ablation tables below. ") if "--train-only" in command else "") +
-        f"{'Complete' if b['complete'] else '**Incomplete**: the runs listed as pending were not done in this session'}. "
-        f"Written {b['written']}. {res['settings']['matched']['steps']} training steps of batch "
-        f"{res['settings']['matched']['batch_size']} for every method, demos recorded with seed "
-        f"{res['settings']['record_seed']}, evaluation seeds from {res['settings']['eval_seed']} "
-        f"({res['settings']['eval_episodes_per_cell']} episodes per cell, {res['settings']['episode_length']}-step "
-        "episodes, `lerobot-eval --env.type=rnd_mw`). Success rate with its Wilson 95% interval. "
-        + (f"JSON per run: [`benchmarks/results/{folder}/runs/`](../benchmarks/results/{folder}/runs/); "
-           if (RESULTS / folder / "runs").is_dir() else "") +
-        "All runs: "
-        f"[`benchmarks/results/{folder}/results.json`](../benchmarks/results/{folder}/results.json)." +
-        (f" {_collected_sentence(runs, folder)}" if any(r.get("collected_from") for r in runs) else ""),
-        "",
-        "| method | task | demos | success | 95% interval | episodes | params | train loop | eval | final loss |",
-        "| --- | --- | ---: | ---: | --- | ---: | ---: | ---: | ---: | ---: |",
-    ]
-    notes = []
-    for r in runs:
-        run_json = (REPO / r["collected_from"] if r.get("collected_from") else
-                    RESULTS / folder / "runs" / f"{r['method']}__{r['task']}__n{r['demos']}__seed{r.get('seed', 0)}.json")  # fmt: skip
-        note = (_load(run_json) or {}).get("note")
-        if note:  # runs that share a note share its footnote
-            if note not in notes:
-                notes.append(note)
-            r = {**r, "label": f"{r['label']} [{notes.index(note) + 1}]"}
-        if not r["eval_episodes"]:
-            curve = r.get("loss_curve") or []
-            final = f"{curve[-1][1]:.3f}" if curve else "–"
-            lines.append(f"| {r['label']} | {r['task']} | {r['demos']} | not evaluated | | | | | | {final} |")
-            continue
-        lo, hi = r["ci95"]
-        curve = r.get("loss_curve") or []
-        final = f"{curve[-1][1]:.3f}" if curve else "–"
-        params = f"{r['n_params'] / 1e6:.1f}M" if r.get("n_params") else "–"
-        tl = f"{r['train_seconds'] / 60:.1f} min" if r.get("train_seconds") else "–"
-        ev = f"{r['eval_seconds'] / 60:.1f} min" if r.get("eval_seconds") else "–"
-        lines.append(
-            f"| {r['label']} | {r['task']} | {r['demos']} | {100 * r['success_rate']:.0f}% | "
-            f"{100 * lo:.0f}–{100 * hi:.0f}% | {r['eval_episodes']} | {params} | {tl} | {ev} | {final} |"
-        )
-    lines += [""] + [f"[{i}] {n}" for i, n in enumerate(notes, 1)]
-    lines += [
-        "",
-        f"![success per task](images/{images}_success_per_task.png)",
-        "",
-        *([f"![success against the number of demos](images/{images}_success_vs_demos.png)", ""]
-          if len(res["benchmark"]["demos"]) > 1 else []),
-        "Training loss curves (each method's own loss; did it flatten?):",
-        "",
-        f"![loss curves](images/{images}_loss_curves.png)",
-    ]
     return lines
 
 
@@ -182,18 +343,6 @@ def generalisation_section(res: dict, folder: str) -> list[str]:
             table.append(f"| {r['label']} | {r['demos']} | " + " | ".join(cells) + " |")
         lines += table + [""]
     return lines
-
-
-def _collected_sentence(runs: list[dict], folder: str) -> str:
-    """Where the runs that another benchmark trained come from (run_benchmark.py --collect-from)."""
-    collected = [r for r in runs if r.get("collected_from")]
-    sources = sorted({Path(r["collected_from"]).parent.parent.name for r in collected})
-    own = "trains nothing" if len(collected) == len(runs) else f"trains {len(runs) - len(collected)} of its runs"
-    count = f"{len(collected)} run is" if len(collected) == 1 else f"{len(collected)} runs are"
-    return (f"This folder {own}: {count} read from "
-            + ", ".join(f"[`{s}`](../benchmarks/results/{s}/)" for s in sources)
-            + f" (`--collect-from`; [`results.md`](../benchmarks/results/{folder}/results.md) names each run's "
-            "source), so the command above trains only what none of them holds.")
 
 
 def ablation_section(res: dict, name: str) -> list[str]:
@@ -259,7 +408,7 @@ def hand_expert_section(res: dict, fit: dict | None) -> list[str]:
     lines = [
         "### reach-v3 on the earlier demos (MetaWorld's own reach policy; superseded)",
         "",
-        res["description"] + " JSON: [`benchmarks/results/cpu_reach_hand_expert/`](../benchmarks/results/cpu_reach_hand_expert/).",
+        res["description"] + " JSON: [`benchmarks/results/archive/cpu_reach_hand_expert/`](../benchmarks/results/archive/cpu_reach_hand_expert/).",
         "",
         "| method | task | success | 95% interval | episodes |",
         "| --- | --- | ---: | --- | ---: |",
@@ -269,7 +418,7 @@ def hand_expert_section(res: dict, fit: dict | None) -> list[str]:
         lines.append(f"| {r['label']} | {r['task']} | {r['successes']}/{r['eval_episodes']} | "
                      f"{100 * lo:.0f}–{100 * hi:.0f}% | {r['eval_episodes']} |")  # fmt: skip
     if fit:
-        lines += [""] + train_placements_section(fit, "benchmarks/results/cpu_reach_hand_expert/train_placements.json")[2:]
+        lines += [""] + train_placements_section(fit, "benchmarks/results/archive/cpu_reach_hand_expert/train_placements.json")[2:]
     return lines
 
 
@@ -367,56 +516,95 @@ def sampler_steps_section(res: dict, name: str) -> list[str]:
     return lines
 
 
-def main() -> int:
-    parts = [START, "", "## CPU results (generated by `benchmarks/write_benchmarks_md.py` from the JSON)", ""]
-    for path in sorted(RESULTS.glob("train_step_cpu*.json")):  # one per machine kind (AVX-512, AVX2)
-        train = _load(path)
-        if train:
-            parts += train_step_section(train, path.name) + [""]
+def current_block() -> list[str]:
+    """The generated opening of docs/BENCHMARKS.md: the current results of the shipped configs."""
+    one_step = _load(RESULTS / "one_step_sampling_test.json")
+    n20_6000 = _load(RESULTS / "reach_n20_6000steps_test.json")
+    parts = [START, "", "## Current results (generated by `benchmarks/write_benchmarks_md.py` from the JSON)", "",
+             "The shipped CPU configs of `policies_config/metaworld/`: `rnd_ai_cpu.json` (R&D-AI, 6.0M parameters, "
+             "one denoising step and the final action step), `act_cpu.json` and `diffusion_cpu.json`. Every figure "
+             "below comes from a JSON that [benchmarks/results/INDEX.md](../benchmarks/results/INDEX.md) lists as "
+             "current.", ""]  # fmt: skip
+    if one_step:
+        parts += headline_section(one_step) + [""]
+    parts += reach_n20_section(n20_6000) + [""]
+    train_steps = [(p.name, _load(p)) for p in sorted(RESULTS.glob("train_step_cpu*.json"))]
+    inference = RESULTS / "inference_cpu_tier_avx512.json"
+    parts += cost_section(train_steps, (inference.name, _load(inference)) if inference.exists() else None) + [""]
     quick = [(p.name, _load(p)) for p in sorted(RESULTS.glob("quickstart*_cpu.json"))]
     if quick:
         parts += quickstart_section(quick) + [""]
-    for path in sorted(RESULTS.glob("inference_cpu_tier*.json")):  # one per machine kind (AVX2, AVX-512)
-        inference = _load(path)
-        if inference:
-            parts += inference_section(inference, path.name) + [""]
-    for folder in sorted(p.parent.name for p in RESULTS.glob("cpu*/results.json")):
-        bench = _load(RESULTS / folder / "results.json")
-        if bench:
-            parts += cpu_benchmark_section(bench, folder, folder) + [""]
-            parts += generalisation_section(bench, folder)
-            for name in ("success_per_task", "loss_curves") + (("success_vs_demos",) if len(bench["benchmark"]["demos"]) > 1 else ()):
-                src = RESULTS / folder / f"{name}.png"
-                if src.exists():
-                    shutil.copy(src, REPO / "docs" / "images" / f"{folder}_{name}.png")
-    fit = _load(RESULTS / "cpu" / "train_placements.json")
-    if fit:
-        parts += train_placements_section(fit, "benchmarks/results/cpu/train_placements.json") + [""]
-    hand = _load(RESULTS / "cpu_reach_hand_expert" / "results_reach.json")
+    parts += runs_section(one_step, n20_6000) + [""]
+    parts += [
+        "## Archived results",
+        "",
+        "Superseded and exploratory results (the 1,000-step benchmark, the linear patch embedding, 4-step sampling "
+        "where a 1-step re-evaluation exists, ablations on validation seeds, rollout traces, earlier quickstarts and "
+        "timings) are kept under [`benchmarks/results/archive/`](../benchmarks/results/archive/): "
+        "[INDEX.md](../benchmarks/results/INDEX.md) lists each with the command that produced it and one line of why "
+        "it was superseded, and [ARCHIVE.md](../benchmarks/results/archive/ARCHIVE.md) shows their tables. The config "
+        "switches retired from `RnDConfig` (`point_update` variants other than x0/ddim, `denoise_step`, "
+        "`obs_encoder=resnet18`, `patch_embed=conv3x3`, `train_first_step_fraction`, `camera_dropout`, "
+        "`image_shift_augment`, `use_ema`, `embedding_init_std`, per-horizon action normalisation, `render_history`, "
+        f"the loss weights) were last in the code at git tag `{TAG}` (commit `{TAG_COMMIT}`); their ablation rows "
+        "are in the archive.",
+        "",
+        END,
+    ]
+    return parts
+
+
+# Links in the sections point from docs/ (`../benchmarks/results/...`, `images/...`); ARCHIVE.md lives in
+# benchmarks/results/archive/.
+_ARCHIVE_LINKS = (("](../benchmarks/results/archive/", "]("), ("](../benchmarks/results/", "](../"),
+                  ("](images/archive/", "]("), ("](images/", "](../../../docs/images/"))  # fmt: skip
+
+
+def archive_page() -> str:
+    """benchmarks/results/archive/ARCHIVE.md: the tables of the archived JSON that have no results.md."""
+    parts = ["# Archived results (generated by `benchmarks/write_benchmarks_md.py`; do not edit)", "",
+             "Superseded or exploratory: [../INDEX.md](../INDEX.md) says why for each. Kept as measured; the "
+             "commands in them name the paths before the move to `archive/`. Run folders (`cpu*/`, `smoke/`) have "
+             "their own `results.md`.", ""]  # fmt: skip
+    quick = [(f"archive/{p.name}", _load(p)) for p in sorted(ARCHIVE.glob("quickstart*_cpu.json"))]
+    if quick:
+        parts += ["### Earlier quickstarts"] + quickstart_section(quick)[1:] + [""]
+    for path in sorted(ARCHIVE.glob("inference_cpu_tier*.json")):
+        parts += inference_section(_load(path), f"archive/{path.name}") + [""]
+    fit = _load(RESULTS / "cpu_3000" / "train_placements.json")
+    if fit:  # the earlier linear-embedding R&D-AI of cpu_3000 on its own demos
+        parts += train_placements_section(fit, "benchmarks/results/cpu_3000/train_placements.json") + [""]
+    hand = _load(ARCHIVE / "cpu_reach_hand_expert" / "results_reach.json")
     if hand:
-        parts += hand_expert_section(hand, _load(RESULTS / "cpu_reach_hand_expert" / "train_placements.json")) + [""]
-    for path in sorted(RESULTS.glob("ablation_cpu*.json")):
+        parts += hand_expert_section(hand, _load(ARCHIVE / "cpu_reach_hand_expert" / "train_placements.json")) + [""]
+    demos = _load(ARCHIVE / "cpu_3000_reach_demos" / "results.json")
+    if demos:
+        parts += generalisation_section(demos, "archive/cpu_3000_reach_demos")
+    for path in sorted(ARCHIVE.glob("ablation_cpu*.json")):
         ablation = _load(path)
-        if ablation and ablation.get("rows"):  # a file whose first row is still training has none yet
-            parts += ablation_section(ablation, path.name) + [""]
-    for path in sorted(RESULTS.glob("one_step_sampling*.json")):
-        steps = _load(path)
-        if steps and steps.get("entries"):  # the first, hand-assembled validation file has "runs" instead
-            parts += sampler_steps_section(steps, path.name) + [""]
-    for path in sorted(RESULTS.glob("validation_curve_*.json")):
-        parts += validation_curve_section(_load(path), path.name) + [""]
-        if path.with_suffix(".png").exists():
-            shutil.copy(path.with_suffix(".png"), REPO / "docs" / "images" / path.with_suffix(".png").name)
-    parts.append(END)
-    text = DOC.read_text()
-    block = "\n".join(parts)
+        if ablation and ablation.get("rows"):
+            parts += ablation_section(ablation, f"archive/{path.name}") + [""]
+    for path in sorted(ARCHIVE.glob("validation_curve_*.json")):
+        parts += validation_curve_section(_load(path), f"archive/{path.name}") + [""]
+    text = "\n".join(parts).rstrip() + "\n"
+    for old, new in _ARCHIVE_LINKS:
+        text = text.replace(old, new)
+    return text
+
+
+def render_doc(text: str) -> str:
+    """docs/BENCHMARKS.md with its generated block replaced (or put after the title when it has none)."""
+    block = "\n".join(current_block())
     if START in text and END in text:
-        text = text[: text.index(START)] + block + text[text.index(END) + len(END) :]
-    else:
-        head, _, rest = text.partition("\n\n")
-        text = head + "\n\n" + block + "\n\n" + rest
-    DOC.write_text(text)
-    print(f"wrote the CPU-results section of {DOC}")
+        return text[: text.index(START)] + block + text[text.index(END) + len(END) :]
+    head, _, rest = text.partition("\n\n")
+    return head + "\n\n" + block + "\n\n" + rest
+
+
+def main() -> int:
+    DOC.write_text(render_doc(DOC.read_text()))
+    ARCHIVE_DOC.write_text(archive_page())
+    print(f"wrote the current results of {DOC} and {ARCHIVE_DOC}")
     return 0
 
 

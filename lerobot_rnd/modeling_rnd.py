@@ -2,7 +2,7 @@
 """Render and Diffuse (R&D) policy.
 
 "Render and Diffuse: Aligning Image and Action Spaces for Diffusion-based Behaviour Cloning",
-Vosylius, Seo, Wang and Johns, RSS 2024 (https://arxiv.org/abs/2405.18196).
+Vosylius, Seo, Uruç and James, RSS 2024 (https://arxiv.org/abs/2405.18196).
 
 Shapes: B batch, H observation steps, T future steps, F = H + T frames, C cameras, h x w network image size.
 """

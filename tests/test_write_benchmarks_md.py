@@ -91,48 +91,80 @@ def test_ablation_rows_show_how_long_the_demos_go_on_after_success():
     assert next(line for line in lines if line.startswith("| old |")).split(" | ")[col] == "10"
 
 
-def test_a_folder_of_collected_runs_says_so_and_links_its_sources():
+def test_wilson_interval_matches_the_recorded_ones():
+    """The page computes its intervals itself; they agree with those sampler_steps.py recorded."""
     import json
-    from pathlib import Path
 
     import benchmarks.write_benchmarks_md as w
 
-    res = json.loads((Path(w.RESULTS) / "cpu_3000_drawer" / "results.json").read_text())
-    trained = "\n".join(w.cpu_benchmark_section(res, "trained_here", "trained_here"))
-    src = "benchmarks/results/{}/runs/{}__drawer-close-v3__n10__seed0.json"
-    runs = [{**r, "collected_from": src.format("cpu_3000_drawer" if r["method"] != "act" else "other", r["method"])}
-            for r in res["runs"]]  # fmt: skip
-    collected = "\n".join(w.cpu_benchmark_section({**res, "runs": runs}, "collected", "collected"))
-    partly = "\n".join(w.cpu_benchmark_section({**res, "runs": [runs[0], *res["runs"][1:]]}, "partly", "partly"))
-    assert "trains nothing" not in trained and "collect-from" not in trained
-    assert "This folder trains nothing: 3 runs are read from [`cpu_3000_drawer`]" in collected
-    assert "[`other`](../benchmarks/results/other/)" in collected
-    assert "This folder trains 2 of its runs: 1 run is read from" in partly
+    res = json.loads((w.RESULTS / "one_step_sampling_test.json").read_text())
+    for e in res["entries"]:
+        lo, hi = w.wilson(e["successes"], e["episodes"])
+        assert abs(lo - e["ci95"][0]) < 1e-9 and abs(hi - e["ci95"][1]) < 1e-9
+    assert w.cell(26, 50) == "26/50 (39-65%)" and w.cell(0, 0) == "0/0 (0-100%)"
 
 
-def test_a_benchmark_with_two_demo_counts_shows_success_against_demos():
+def test_headline_takes_rnd_from_one_step_sampling_and_baselines_from_their_runs():
+    """R&D-AI's row is the shipped config's 1-step re-evaluation, not its benchmark runs' 4-step numbers."""
     import json
-    from pathlib import Path
 
     import benchmarks.write_benchmarks_md as w
 
-    res = json.loads((Path(w.RESULTS) / "cpu_3000_drawer" / "results.json").read_text())
-    one = "\n".join(w.cpu_benchmark_section(res, "x", "x"))
-    two = "\n".join(w.cpu_benchmark_section({**res, "benchmark": {**res["benchmark"], "demos": [10, 20]}}, "x", "x"))
-    assert "success_vs_demos" not in one
-    assert "![success against the number of demos](images/x_success_vs_demos.png)" in two
+    res = json.loads((w.RESULTS / "one_step_sampling_test.json").read_text())
+    lines = w.headline_section(res)
+    rnd = next(line for line in lines if line.startswith("| R&D-AI"))
+    act = next(line for line in lines if line.startswith("| ACT"))
+    assert "**50/50** (93-100%)" in rnd and "**48/50** (87-99%)" in rnd and "| 26/50 (39-65%)" in rnd
+    assert "47/50" not in rnd  # button-press with 4 steps
+    assert "48/50 (87-99%)" in act and "38/50 (63-86%)" in act and "**29/50** (44-71%)" in act
+    swapped = {**res, "entries": [{**e, "num_inference_steps": 5 - e["num_inference_steps"]} for e in res["entries"]]}
+    assert "47/50" in next(line for line in w.headline_section(swapped) if line.startswith("| R&D-AI"))
 
 
-def test_runs_that_share_a_note_share_its_footnote():
-    """The camera-mismatch folder's three runs carry one note: it is printed once, and each run points at it."""
-    import json
-    from pathlib import Path
+def test_cost_is_a_ratio_to_act_in_the_same_run():
+    import benchmarks.write_benchmarks_md as w
+
+    def step(method, total):
+        return {"method": method, "parameters": 1e6, "median_total_s": total, "speedup_vs_reference": 1.0,
+                "median_s": {"data": 0.0, "pre": 0.0, "render": 0.0, "forward": total, "backward": 0.0, "optim": 0.0}}
+
+    train = {"command": "c", "steps": 1, "warmup": 0, "batch_size": 8, "threads": 2, "reference": "act_cpu",
+             "machine": {"cores": 2, "torch": "t", "cpu_capability": "AVX2"},
+             "results": [step("rnd_ai_cpu", 0.5), step("act_cpu", 2.0), step("diffusion_cpu", 3.0)]}
+    inference = {"machine": {"cpu_capability": "AVX512"},
+                 "results": [{"method": "ACT", "config": "a", "params": 5e7, "median_ms": 40.0},
+                             {"method": "R&D-AI", "config": "r", "params": 6e6, "median_ms": 60.0},
+                             {"method": "Diffusion Policy", "config": "d", "params": 2.7e8, "median_ms": 400.0}]}  # fmt: skip
+    lines = w.cost_section([("t.json", train)], ("i.json", inference))
+    row = next(line for line in lines if line.startswith("| training step, AVX2"))
+    assert "0.50 s (0.25x)" in row and "2.00 s (1.00x)" in row and "3.00 s (1.50x)" in row
+    row = next(line for line in lines if line.startswith("| one action chunk, AVX512"))
+    assert "60 ms (1.5x)" in row and "400 ms (10.0x)" in row
+
+
+def test_the_page_and_the_archive_page_are_up_to_date():
+    """docs/BENCHMARKS.md's generated block and ARCHIVE.md are what the JSON gives (run write_benchmarks_md.py)."""
+    import benchmarks.write_benchmarks_md as w
+
+    text = w.DOC.read_text()
+    assert text.startswith("# Benchmarks\n\n" + w.START)  # the page opens with the current results
+    assert w.render_doc(text) == text
+    assert w.archive_page() == w.ARCHIVE_DOC.read_text()
+    assert f"git tag `{w.TAG}` (commit `{w.TAG_COMMIT}`)" in text
+    current, _, rest = text.partition("## Archived results")
+    assert "archive/" not in current.split(w.START, 1)[1]  # nothing archived among the current results
+    assert "one_step_sampling_test.json" in current and w.END in rest
+
+
+def test_every_result_in_the_readme_is_a_current_one():
+    """Each success cell of README.md's results table is in BENCHMARKS.md's generated (current) block."""
+    import re
 
     import benchmarks.write_benchmarks_md as w
 
-    res = json.loads((Path(w.RESULTS) / "cpu_3000_reach_n20_camera_mismatch" / "results.json").read_text())
-    lines = w.cpu_benchmark_section(res, "cpu_3000_reach_n20_camera_mismatch", "x")
-    footnotes = [line for line in lines if line.startswith("[")]
-    assert len(footnotes) == 1 and footnotes[0].startswith("[1] Evaluated with another corner2 pose")
-    rows = [line for line in lines if line.startswith("| ") and "reach-v3" in line]
-    assert len(rows) == 3 and all(" [1] |" in row for row in rows)
+    readme = (w.REPO / "README.md").read_text()
+    block = w.DOC.read_text().split(w.START, 1)[1].split("## Archived results", 1)[0].replace("**", "")
+    cells = re.findall(r"\d+/\d+\*?\*? \(\d+-\d+%\)", readme)
+    assert len(cells) >= 11
+    for c in cells:
+        assert c.replace("**", "") in block, c

@@ -1,0 +1,355 @@
+#!/usr/bin/env python
+"""Write benchmarks/results/INDEX.md: every result under benchmarks/results, current or archived, from its JSON.
+
+    python benchmarks/write_results_index.py           # rewrite benchmarks/results/INDEX.md
+    python benchmarks/write_results_index.py --check   # exit 1 when INDEX.md is not what the JSON gives
+
+An *entry* is a JSON file directly in `benchmarks/results/` or `benchmarks/results/archive/` (a PNG of the same
+stem belongs to it) or a folder there (a `run_benchmark.py` results folder with its run JSONs). `STATUS` below is
+the one place that says whether an entry is current (it measures a config that ships in `policies_config/`, and is
+the latest measurement of its kind) or archived (superseded or exploratory), with one line of what it is or why it
+was superseded. Current entries live in `benchmarks/results/`, archived ones in `benchmarks/results/archive/`
+under the same name; the script refuses an entry on disk that `STATUS` does not classify, one that `STATUS` names
+but is not on disk, and one that lies in the wrong place for its status. The command and the code commit / config
+of each entry are read from its JSON ("not recorded" where the JSON has none).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS = REPO / "benchmarks" / "results"
+ARCHIVE = "archive"
+INDEX = "INDEX.md"
+TAG = "ablation-switches-2026-12"
+
+CURRENT, ARCHIVED = "current", "archived"
+# entry name -> (status, one line: what it measures (current) or why it was superseded (archived))
+STATUS: dict[str, tuple[str, str]] = {
+    # ---- current: the shipped configs (policies_config/), the latest measurement of each kind ----
+    "one_step_sampling_test.json": (CURRENT, "The CPU benchmark's R&D-AI checkpoints (drawer-close, button-press, reach-v3 "
+                                    "training seed 1) sampled with 1 and with 4 denoising steps on the test seeds: the "
+                                    "1-step rows are the shipped CPU tier's headline numbers."),
+    "cpu_3000_drawer": (CURRENT, "drawer-close-v3, 10 demos, 3,000 steps: the headline's ACT and Diffusion Policy runs; its "
+                        "R&D-AI run was sampled with 4 steps (its 1-step result: one_step_sampling_test.json)."),
+    "cpu_3000_button": (CURRENT, "button-press-topdown-v3, 10 demos, 3,000 steps: the headline's ACT and Diffusion Policy "
+                        "runs; its R&D-AI run was sampled with 4 steps (its 1-step result: one_step_sampling_test.json)."),
+    "cpu_3000": (CURRENT, "reach-v3, 10 demos, 3,000 steps: the headline's ACT and Diffusion Policy runs; its R&D-AI row "
+                 "is the earlier linear patch embedding, superseded by one_step_sampling_test.json."),
+    "cpu_3000_reach_seeds": (CURRENT, "reach-v3, 10 demos: a second training seed of R&D-AI and ACT (seed 0 read from "
+                             "archive/cpu_3000_conv and cpu_3000); R&D-AI sampled with 4 steps, its seed-1 checkpoint "
+                             "with 1 step in one_step_sampling_test.json."),
+    "cpu_3000_reach_n20": (CURRENT, "reach-v3, 20 demos, 3,000 steps, all three methods (R&D-AI sampled with 4 steps)."),
+    "cpu_6000_reach_n20": (CURRENT, "ACT on reach-v3, 20 demos, trained 6,000 steps."),
+    "reach_n20_6000steps_test.json": (CURRENT, "R&D-AI (CPU tier, 1 denoising step) on reach-v3, 20 demos, trained "
+                                      "6,000 steps, test seeds."),
+    "quickstart_drawer_cpu.json": (CURRENT, "examples/quickstart.sh on drawer-close-v3 with the shipped CPU tier "
+                                   "(1 denoising step)."),
+    "train_step_cpu.json": (CURRENT, "Where a training step goes: the shipped CPU configs (and the legacy speed "
+                            "reference) in one run on an AVX-512 bf16 CPU."),
+    "train_step_cpu_avx2.json": (CURRENT, "The same on an AVX2-only CPU (float32)."),
+    "inference_cpu_tier_avx512.json": (CURRENT, "One action chunk at inference (batch 1): the shipped CPU tier (1 "
+                                       "denoising step), ACT and Diffusion Policy in one run on an AVX-512 bf16 CPU."),
+    "render_cpu.json": (CURRENT, "Rasteriser throughput on CPU (benchmarks/bench_render.py); the only measurement "
+                        "of it."),
+    "panda_env_speed.json": (CURRENT, "Speed of the Panda suite's environments and scripted experts (no policy)."),
+    "loss_parity_before.json": (CURRENT, "First 20 training losses of every shipped rnd config before the config "
+                                "was made lean (benchmarks/loss_parity.py)."),
+    "loss_parity_after.json": (CURRENT, "The same after it: equal to loss_parity_before.json."),
+    # ---- archived: superseded or exploratory ----
+    "cpu": (ARCHIVED, "The first CPU benchmark: 1,000 steps, the earlier linear patch embedding, 4-step sampling; "
+            "superseded by the 3,000-step runs."),
+    "cpu_3000_conv": (ARCHIVED, "R&D-AI on reach-v3 (training seed 0) with 4-step sampling; the current reach-v3 "
+                      "R&D-AI figure is the seed-1 checkpoint sampled with 1 step (one_step_sampling_test.json); "
+                      "both gave 26/50."),
+    "cpu_3000_three_tasks": (ARCHIVED, "A collection of the three tasks' 3,000-step runs with 4-step R&D-AI rows; "
+                             "superseded by the generated headline of docs/BENCHMARKS.md (R&D-AI from "
+                             "one_step_sampling_test.json)."),
+    "cpu_3000_reach_demos": (ARCHIVED, "A collection of the 10- and 20-demo reach-v3 runs with 4-step R&D-AI rows; the "
+                             "runs are in cpu_3000, cpu_3000_reach_n20 and archive/cpu_3000_conv."),
+    "cpu_3000_reach_variants": (ARCHIVED, "Exploratory: R&D-A and R&D-I at the CPU tier's size (no shipped CPU config "
+                                "for them), 4-step sampling."),
+    "cpu_3000_reach_n20_camera_mismatch": (ARCHIVED, "Evaluated with another corner2 camera pose than the demos show "
+                                           "(a harness bug, fixed): see its NOTE.md."),
+    "cpu_3000_p16": (ARCHIVED, "Trained only: the 16-px patch ablation (its validation row is in "
+                     "ablation_cpu_tcp_3000.json)."),
+    "cpu_3000_shift": (ARCHIVED, f"Trained only: image_shift_augment=6, a switch retired at tag {TAG}."),
+    "cpu_3000_w384": (ARCHIVED, "Exploratory: twice the width (dim_model=384), not a shipped config; 25/50 against "
+                      "the default's 26/50."),
+    "cpu_3000_w384_n20": (ARCHIVED, "Exploratory: twice the width at 20 demos, not a shipped config."),
+    "cpu_9000": (ARCHIVED, "Trained only: 9,000 steps for validation_curve_cpu_9000.json."),
+    "cpu_reach_hand_expert": (ARCHIVED, "reach-v3 on demos of the earlier reach expert (MetaWorld's hand target, "
+                              "demos end 3.4-4.9 cm from the goal); superseded by the corrected expert's demos."),
+    "smoke": (ARCHIVED, "Smoke-scale harness check of the paper-size configs (a few steps), not a measurement."),
+    "ablation_cpu.json": (ARCHIVED, "Validation-seed ablations on the earlier reach-v3 demos (hand-target expert); "
+                          f"most rows use switches retired at tag {TAG}."),
+    "ablation_cpu_tcp_3000.json": (ARCHIVED, "Validation-seed ablations of the CPU tier on reach-v3 (exploratory; "
+                                   f"many rows use switches retired at tag {TAG}); summarised in docs/REACH.md."),
+    "ablation_cpu_tcp_3000_3cam.json": (ARCHIVED, "Exploratory: a third camera (topview) on reach-v3, validation seeds."),
+    "ablation_cpu_tcp_3000_corner2_topview.json": (ARCHIVED, "Exploratory: corner2 + topview cameras on reach-v3, "
+                                                   "validation seeds."),
+    "ablation_cpu_tcp_3000_extra40.json": (ARCHIVED, "Exploratory: demos that go on 40 frames after success, "
+                                           "validation seeds."),
+    "ablation_cpu_tcp_3000_n20.json": (ARCHIVED, "Exploratory: width 384 at 20 demos, validation seeds."),
+    "ablation_cpu_tcp_6000_n20.json": (ARCHIVED, "Validation seeds of the 20-demo 6,000-step R&D-AI run; its test-seed "
+                                       "result is reach_n20_6000steps_test.json."),
+    "episode_overlap_cpu_tcp_3000.json": (ARCHIVED, "Analysis: which episodes the rows of ablation_cpu_tcp_3000.json "
+                                          "solve."),
+    "one_step_sampling_val.json": (ARCHIVED, "1 vs 4 denoising steps on validation seeds; superseded by the test-seed "
+                                   "measurement one_step_sampling_test.json."),
+    "quickstart_cpu.json": (ARCHIVED, "reach-v3 quickstart on demos of the earlier reach expert."),
+    "quickstart_drawer_4steps_cpu.json": (ARCHIVED, "Quickstart with 4 denoising steps; superseded by "
+                                          "quickstart_drawer_cpu.json (1 step)."),
+    "quickstart_drawer_linear_cpu.json": (ARCHIVED, "Quickstart with the earlier linear patch embedding; superseded by "
+                                          "quickstart_drawer_cpu.json."),
+    "inference_cpu.json": (ARCHIVED, "The first inference measurement: the legacy CPU config and the paper size, 4 "
+                           "steps, float32, on a loaded machine; superseded by inference_cpu_tier_avx512.json."),
+    "inference_cpu_tier.json": (ARCHIVED, "The CPU tier on an AVX2 CPU with 4 denoising steps; the shipped config "
+                                "samples with 1 (inference_cpu_tier_avx512.json)."),
+    "inference_cpu_tier_avx512_4steps.json": (ARCHIVED, "The CPU tier with 4 denoising steps; superseded by "
+                                              "inference_cpu_tier_avx512.json (1 step)."),
+    "reach_goal_views.json": (ARCHIVED, "Exploratory (reach-v3 investigation, docs/REACH.md): where the goal marker "
+                              "appears in each camera."),
+    "trace_reach_conv3x3_stem.json": (ARCHIVED, f"Exploratory trace of the conv3x3-stem ablation (retired at tag {TAG})."),
+    "trace_reach_current_defaults.json": (ARCHIVED, "Exploratory trace of the 10-demo validation checkpoint "
+                                          "(docs/REACH.md)."),
+    "trace_reach_inference_steps_1.json": (ARCHIVED, "Exploratory trace of that checkpoint sampled with 1 step."),
+    "trace_reach_n10_act_seed1.json": (ARCHIVED, "Exploratory trace of ACT's second training seed (10 demos)."),
+    "trace_reach_n20_act.json": (ARCHIVED, "Exploratory trace of the 20-demo 3,000-step ACT checkpoint."),
+    "trace_reach_n20_rnd_ai.json": (ARCHIVED, "Exploratory trace of the 20-demo 3,000-step R&D-AI checkpoint."),
+    "trace_reach_width_384.json": (ARCHIVED, "Exploratory trace of the width-384 ablation."),
+    "train_placements_reach_n20.json": (ARCHIVED, "Diagnostic: the 20-demo checkpoints replayed on their own demo "
+                                        "placements (docs/REACH.md)."),
+    "train_placements_reach_n20_act_6000.json": (ARCHIVED, "Diagnostic: ACT's 6,000-step 20-demo checkpoint on its own "
+                                                 "demo placements."),
+    "validation_curve_cpu_3000_reach_n20.json": (ARCHIVED, "Exploratory: validation-seed success of the 20-demo "
+                                                 "3,000-step checkpoint."),
+    "validation_curve_cpu_9000.json": (ARCHIVED, "Exploratory: validation-seed success against training step up to "
+                                       "9,000 steps."),
+}
+
+
+def find_entries(results: Path = RESULTS) -> dict[str, Path]:
+    """Every entry on disk: top-level JSON files and folders of `results` and of `results/archive`, by name.
+
+    A name found in both places is reported under both keys (`name` and `archive/name`), so a duplicate shows.
+    """
+    found = {}
+    for base, prefix in ((results, ""), (results / ARCHIVE, ARCHIVE + "/")):
+        if not base.is_dir():
+            continue
+        for p in sorted(base.iterdir()):
+            if p.is_dir() and p.name != ARCHIVE and any(p.rglob("*.json")):
+                found[prefix + p.name] = p
+            elif p.is_file() and p.suffix == ".json":
+                found[prefix + p.name] = p
+    return found
+
+
+def check_placement(found: dict[str, Path], status: dict[str, tuple[str, str]]) -> list[str]:
+    """Problems: an entry STATUS does not classify, one it names but is missing, one in the wrong folder."""
+    problems = []
+    names = {key.removeprefix(ARCHIVE + "/") for key in found}
+    for key in found:
+        name = key.removeprefix(ARCHIVE + "/")
+        if name not in status:
+            problems.append(f"{key}: not in STATUS (say whether it is current or archived, and why)")
+            continue
+        want = ARCHIVE + "/" + name if status[name][0] == ARCHIVED else name
+        if key != want:
+            problems.append(f"{key}: STATUS says {status[name][0]}, so it belongs at {want}")
+    for name, (state, _) in status.items():
+        if state not in (CURRENT, ARCHIVED):
+            problems.append(f"{name}: unknown status {state!r}")
+        if name not in names:
+            problems.append(f"{name}: in STATUS but not on disk")
+    return problems
+
+
+def _load(path: Path):
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _python(command: str) -> str:
+    """A recorded command with the interpreter's path (a virtual environment's) shortened to `python`."""
+    return re.sub(r"^\S*/python[0-9.]*\s", "python ", command.strip())
+
+
+def _resolve(recorded: str, results: Path) -> Path:
+    """A path recorded inside a JSON (relative to the repository), or its archived place when it was moved."""
+    path = REPO / recorded
+    if not path.exists() and recorded.startswith("benchmarks/results/"):
+        moved = results / ARCHIVE / recorded.removeprefix("benchmarks/results/")
+        if moved.exists():
+            return moved
+    return path
+
+
+def _strings(obj, out: list[str]) -> list[str]:
+    if isinstance(obj, str):
+        out.append(obj)
+    elif isinstance(obj, dict):
+        for v in obj.values():
+            _strings(v, out)
+    elif isinstance(obj, list):
+        for v in obj:
+            _strings(v, out)
+    return out
+
+
+def _unique(items) -> list[str]:
+    return list(dict.fromkeys(i for i in items if i))
+
+
+def _jsons(path: Path) -> list[tuple[str, dict]]:
+    """(relative name, data) of an entry's JSON files: the file itself, or a folder's results JSON and run JSONs."""
+    if path.is_file():
+        return [(path.name, _load(path))]
+    return [(str(p.relative_to(path)), _load(p)) for p in sorted(path.rglob("*.json"))]
+
+
+def commands_of(path: Path) -> list[str]:
+    """The commands that produced an entry, as its JSON records them."""
+    commands = []
+    for _, data in _jsons(path):
+        if not isinstance(data, dict):
+            continue
+        bench = data.get("benchmark")
+        if isinstance(bench, dict) and bench.get("command"):
+            commands.append(_python(bench["command"]))
+        if isinstance(data.get("command"), str) and not data.get("method"):  # a run JSON's commands are lerobot's
+            commands.append(_python(data["command"]))
+        if isinstance(data.get("commands"), list):
+            commands += [_python(c) for c in data["commands"] if isinstance(c, str)]
+        for row in data.get("rows") or []:
+            if isinstance(row, dict) and row.get("ablation_command"):
+                commands.append(_python(row["ablation_command"]))
+    if not commands:  # a hand-assembled file: the commands of its runs / entries
+        for _, data in _jsons(path):
+            for key in ("runs", "entries", "rows"):
+                for item in (data.get(key) or []) if isinstance(data, dict) else []:
+                    if isinstance(item, dict) and isinstance(item.get("command"), str):
+                        commands.append(_python(item["command"]))
+    return _unique(commands)
+
+
+def commits_of(path: Path, results: Path) -> list[str]:
+    """The code commits an entry records (its own, its runs', or those of the runs a collection reads)."""
+    commits = []
+    for _, data in _jsons(path):
+        if not isinstance(data, dict):
+            continue
+        commits += [data.get("code_commit"), data.get("commit")]
+        for run in data.get("runs") or []:
+            if isinstance(run, dict) and run.get("collected_from"):
+                commits.append((_load(_resolve(run["collected_from"], results)) or {}).get("code_commit"))
+    return _unique(c[:7] + ("+dirty" if c.endswith("+dirty") else "") if isinstance(c, str) else None for c in commits)
+
+
+def configs_of(path: Path) -> list[str]:
+    """The policies_config files (and extra training switches) an entry records."""
+    configs = []
+    for _, data in _jsons(path):
+        if not isinstance(data, dict):
+            continue
+        settings = data.get("settings")
+        if isinstance(settings, dict) and isinstance(settings.get("config_files"), dict):
+            configs += settings["config_files"].values()
+        bench = data.get("benchmark")
+        if isinstance(bench, dict):
+            configs += [f"`{a}`" for a in bench.get("train_arg") or []]
+        if data.get("benchmark") == "train_step":
+            configs += [f"policies_config/metaworld/{r['method']}.json" for r in data.get("results", [])]
+        if isinstance(data.get("configs"), dict):  # loss_parity.py: config file -> losses
+            configs += [f"policies_config/{name}" for name in data["configs"]]
+        if isinstance(data.get("args"), dict) and isinstance(data.get("results"), list):  # bench_inference.py
+            configs += [f"`{r['method']}: {r['config']}`" for r in data["results"] if r.get("config")]
+        for entry in data.get("entries") or []:  # sampler_steps.py --run-json: the checkpoint's training config
+            if isinstance(entry, dict) and isinstance(entry.get("source"), str) and entry["source"].endswith(".json"):
+                run = _load(_resolve(entry["source"], RESULTS)) or {}
+                configs += [m.group(0) for s in _strings(run.get("commands", {}), [])
+                            for m in re.finditer(r"policies_config/[\w/]+\.json", s)]  # fmt: skip
+        if not configs:
+            configs += [m.group(0) for s in _strings(data, []) for m in re.finditer(r"policies_config/[\w/]+\.json", s)]
+    return _unique(c.removeprefix(str(REPO) + "/") for c in configs)
+
+
+def _code(text: str, limit: int = 400) -> str:
+    text = text if len(text) <= limit else text[: limit - 3] + "..."
+    return "`" + text.replace("`", "'") + "`"
+
+
+def build_index(results: Path = RESULTS, status: dict[str, tuple[str, str]] = STATUS) -> str:
+    found = find_entries(results)
+    problems = check_placement(found, status)
+    if problems:
+        raise ValueError("benchmarks/results does not match STATUS in benchmarks/write_results_index.py:\n  "
+                         + "\n  ".join(problems))  # fmt: skip
+    lines = [
+        "# Results index",
+        "",
+        "Generated by `python benchmarks/write_results_index.py` from the JSON; do not edit. Every result under "
+        "`benchmarks/results/` is listed once. *Current* results measure configs that ship in `policies_config/` "
+        "(the latest measurement of each kind); *archived* ones, under `archive/` with their original names, are "
+        "superseded or exploratory. Paths recorded inside the JSON (commands, `collected_from`) are those of the "
+        "time of the run, before archived entries moved to `archive/`. The ablation rows of the config switches retired from `RnDConfig` were run with the code "
+        f"at git tag `{TAG}`. docs/BENCHMARKS.md shows the current results.",
+        "",
+    ]
+    for state, title in ((CURRENT, "Current"), (ARCHIVED, "Archived (`archive/`)")):
+        keys = [k for k in found if status[k.removeprefix(ARCHIVE + "/")][0] == state]
+        lines += [f"## {title} ({len(keys)})", ""]
+        for key in keys:
+            path = found[key]
+            name = key.removeprefix(ARCHIVE + "/")
+            link = key + ("/" if path.is_dir() else "")
+            png = path.with_suffix(".png")
+            extra = f" (plot: [`{png.name}`]({key.removesuffix('.json')}.png))" if path.is_file() and png.exists() else ""
+            label = "why archived" if state == ARCHIVED else "what"
+            lines.append(f"- [`{key}`]({link}) — **{state}**{extra}. {label.capitalize()}: {status[name][1]}")
+            commands = commands_of(path)
+            if commands:
+                more = f" (and {len(commands) - 1} more in the JSON)" if len(commands) > 1 else ""
+                lines.append(f"  - command: {_code(commands[0])}{more}")
+            else:
+                lines.append("  - command: not recorded")
+            configs = configs_of(path)
+            lines.append("  - config: " + (", ".join(c if c.startswith("`") else f"`{c}`" for c in configs)
+                                           if configs else "not recorded"))  # fmt: skip
+            commits = commits_of(path, results)
+            lines.append("  - code commit: " + (", ".join(f"`{c}`" for c in commits) if commits else "not recorded"))
+        lines.append("")
+    return "\n".join(lines)
+
+
+def listed_entries(text: str) -> list[str]:
+    """The entries an INDEX.md lists, in order (one per `- [`name`](...)` line)."""
+    return re.findall(r"^- \[`([^`]+)`\]", text, flags=re.M)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--check", action="store_true", help="exit 1 when INDEX.md differs from what the JSON gives")
+    a = p.parse_args(argv)
+    text = build_index(RESULTS, STATUS)  # the module's values at call time (tests point them elsewhere)
+    out = RESULTS / INDEX
+    if a.check:
+        if not out.exists() or out.read_text() != text:
+            print(f"{out} is out of date: run python benchmarks/write_results_index.py", file=sys.stderr)
+            return 1
+        return 0
+    out.write_text(text)
+    print(f"wrote {out} ({len(listed_entries(text))} entries)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
