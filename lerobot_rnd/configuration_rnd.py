@@ -47,6 +47,7 @@ RETIRED_FIELDS: dict[str, tuple[Any, bool]] = {
     "action_loss_weight": (1.0, False),
     "gripper_loss_weight": (1.0, False),
     "scheduler_name": ("cosine", False),
+    "mlp_ratio": (4.0, True),  # retired with issue 35 (task conditioning took its place in the field budget)
 }
 
 #: Fields added after checkpoints were already saved, whose default is not what those checkpoints did, with
@@ -163,13 +164,16 @@ class RnDConfig(PreTrainedConfig):
         dim_model: Transformer width.
         n_layers: Self-attention layers.
         n_heads: Attention heads.
-        mlp_ratio: MLP hidden width relative to `dim_model`.
         patch_size: ViT patch size in pixels.
         patch_embed: "linear" (the ViT's) or "conv" (4x4, 2x2, (p/8)x(p/8) strided convolutions with GELU, still
             patch-local; needs patch_size divisible by 8).
         gripper_patches: 0 tokenises every patch of every frame (the paper); K > 0 only the K patches of each
             future frame and view that the rendered gripper covers most (image-space predictions there only).
         dropout: Dropout in the transformer blocks.
+        task_conditioning: Condition on LeRobot's `task` string with one learned token per task (the paper's goal
+            embedding). None: on when the training dataset has several tasks, off for one (stated in the log).
+        tasks: The task vocabulary (filled from the dataset's meta/tasks when conditioning; saved in config.json).
+            At inference the observation's `task` must be one of them.
         num_train_timesteps: Training diffusion steps K (squared-cosine DDIM schedule).
         num_inference_steps: DDIM steps at inference (the paper: 4; the CPU tier: 1).
         final_action_step: After the DDIM steps, one more pass whose action-space prediction is the final action.
@@ -215,11 +219,14 @@ class RnDConfig(PreTrainedConfig):
     dim_model: int = 1024
     n_layers: int = 8
     n_heads: int = 16
-    mlp_ratio: float = 4.0
     patch_size: int = 16
     patch_embed: str = "linear"
     gripper_patches: int = 0
     dropout: float = 0.0
+
+    # Tasks.
+    task_conditioning: bool | None = None
+    tasks: list[str] = field(default_factory=list)
 
     # Diffusion.
     num_train_timesteps: int = 50

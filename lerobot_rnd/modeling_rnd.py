@@ -28,7 +28,13 @@ from lerobot_rnd.embodiment_binding import (
     resolve_embodiment,
 )
 from lerobot_rnd.geometry import action_from_pose, invert_transform, pose_from_action
-from lerobot_rnd.network import RnDDenoiser, gather_patch_pixels, patch_pixel_index, select_gripper_patches
+from lerobot_rnd.network import (
+    MLP_RATIO,
+    RnDDenoiser,
+    gather_patch_pixels,
+    patch_pixel_index,
+    select_gripper_patches,
+)
 from lerobot_rnd.precision import bf16_autocast
 from lerobot_rnd.rendering import Rasterizer
 from lerobot_rnd.sampler import (
@@ -40,6 +46,7 @@ from lerobot_rnd.sampler import (
     sampler_step,
 )
 from lerobot_rnd.statistics import MinMaxStats, estimate_rnd_statistics
+from lerobot_rnd.tasks import TASK_KEY, resolve_task_conditioning, task_indices
 
 logger = logging.getLogger(__name__)
 
@@ -68,6 +75,7 @@ class RnDPolicy(PreTrainedPolicy):
                 "frames: record or add episodes before training (R&D estimates its statistics from them)."
             )
         embodiment_meshes = resolve_embodiment(config, dataset_meta)
+        resolve_task_conditioning(config, dataset_meta)
         if dataset_meta is not None:  # training from scratch: fail now, not after the run, if the push cannot work
             from lerobot_rnd.dataset_query import install_column_first_queries
             from lerobot_rnd.model_card import check_hub_push_ready
@@ -192,7 +200,8 @@ class RnDPolicy(PreTrainedPolicy):
             images = images[:, None].expand(-1, self.config.n_obs_steps, -1, -1, -1, -1)
         if state.ndim == 2:
             state = state[:, None].expand(-1, self.config.n_obs_steps, -1)
-        return self.model.generate_actions(images, state, noise=noise)
+        task_index = self._task_index(batch, state.shape[0], state.device)
+        return self.model.generate_actions(images, state, noise=noise, task_index=task_index)
 
     @torch.no_grad()
     def select_action(self, batch: dict[str, Tensor], noise: Tensor | None = None) -> Tensor:
@@ -205,6 +214,8 @@ class RnDPolicy(PreTrainedPolicy):
                 OBS_IMAGES: torch.stack(list(self._queues[OBS_IMAGES]), dim=1),
                 OBS_STATE: torch.stack(list(self._queues[OBS_STATE]), dim=1),
             }
+            if TASK_KEY in batch:
+                stacked[TASK_KEY] = batch[TASK_KEY]
             actions = self.predict_action_chunk(stacked, noise=noise)[:, : self.config.n_action_steps]
             self._queues[ACTION].extend(actions.transpose(0, 1))
         return self._queues[ACTION].popleft()
@@ -217,7 +228,15 @@ class RnDPolicy(PreTrainedPolicy):
         if images.ndim == 5:
             images, state = images[:, None], state[:, None] if state.ndim == 2 else state
         action_is_pad = batch.get("action_is_pad")
-        return self.model.compute_loss(images, state, batch[ACTION], action_is_pad)
+        task_index = self._task_index(batch, state.shape[0], state.device)
+        return self.model.compute_loss(images, state, batch[ACTION], action_is_pad, task_index=task_index)
+
+    def _task_index(self, batch: dict, batch_size: int, device) -> Tensor | None:
+        """The batch's task indices (B,) in `config.tasks` when the policy conditions on tasks, else None (a
+        one-task policy needs no `task` string)."""
+        if not self.config.task_conditioning:
+            return None
+        return task_indices(self.config.tasks, batch.get(TASK_KEY), batch_size, device)
 
     def generate_model_card(self, dataset_repo_id, model_type, license, tags):  # noqa: A002
         from lerobot_rnd.model_card import make_rnd_model_card
@@ -322,13 +341,14 @@ class RnDModel(nn.Module):
             dim_model=config.dim_model,
             n_layers=config.n_layers,
             n_heads=config.n_heads,
-            mlp_ratio=config.mlp_ratio,
+            mlp_ratio=MLP_RATIO,
             dropout=config.dropout,
             predict_image=self.predict_image,
             predict_action=self.predict_action,
             use_point_map_input=config.use_point_map_input,
             gripper_patches=config.gripper_patches,
             patch_embed=config.patch_embed,
+            n_tasks=len(config.tasks) if config.task_conditioning else 0,
         )
         # BCE weight of the "closed" class: open/closed ratio of the dataset's gripper targets.
         self.register_buffer("gripper_pos_weight", torch.ones(()))
@@ -527,13 +547,19 @@ class RnDModel(nn.Module):
             out["composite"] = torch.cat([obs_rgb, future_full], dim=1)
         return out
 
-    def _run_network(self, network: nn.Module, inputs: dict, gripper: Tensor, timestep: Tensor, a: Tensor):
-        """The denoiser on rendered inputs. Returns float32 (displacement (B, T, C, 3, N) on the predicted
-        pixels or None, action update (B, T, 6) or None, gripper logits (B, T))."""
+    def _run_network(
+        self, network: nn.Module, inputs: dict, gripper: Tensor, timestep: Tensor, a: Tensor,
+        task_index: Tensor | None = None,
+    ):
+        """The denoiser on rendered inputs (`task_index` (B,) when conditioning on tasks). Returns float32
+        (displacement (B, T, C, 3, N) on the predicted pixels or None, action update (B, T, 6) or None, gripper
+        logits (B, T))."""
+        extra = {} if task_index is None else {"task_index": task_index}
         with self._autocast(a.device.type):
             displacement, update, logits = network(
                 inputs["obs_rgb"], inputs["obs_points"], inputs["future_rgb"], inputs["future_points"],
                 gripper, timestep, a, patch_index=inputs["patch_index"], obs_tokens=inputs.get("obs_tokens"),
+                **extra,
             )
         if displacement is not None:
             displacement = displacement.float().reshape(inputs["target_points"].shape)
@@ -571,7 +597,8 @@ class RnDModel(nn.Module):
     # ------------------------------------------------------------------------------------------------
     # Training.
     def compute_loss(
-        self, images: Tensor, state: Tensor, action: Tensor, action_is_pad: Tensor | None
+        self, images: Tensor, state: Tensor, action: Tensor, action_is_pad: Tensor | None,
+        task_index: Tensor | None = None,
     ) -> tuple[Tensor, dict]:
         """R&D training loss, Eq. (5): L1 image-space displacement + L1 action-space update + BCE gripper."""
         self.meshes.check_loaded()
@@ -585,7 +612,9 @@ class RnDModel(nn.Module):
         T_ee_target, gripper_target = self.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
         sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target)
         a_gt, a_noisy = sample["a_gt"], sample["a_noisy"]
-        displacement, update, logits = self._run_network(self.network, sample, gripper, sample["k"], a_noisy)
+        displacement, update, logits = self._run_network(
+            self.network, sample, gripper, sample["k"], a_noisy, task_index
+        )
 
         valid_step = torch.ones(b, t, dtype=torch.bool, device=action.device)
         if action_is_pad is not None:
@@ -617,7 +646,7 @@ class RnDModel(nn.Module):
 
     # ------------------------------------------------------------------------------------------------
     # Inference.
-    def denoiser(self, images, T_world_ee, gripper, history: dict | None = None):
+    def denoiser(self, images, T_world_ee, gripper, history: dict | None = None, task_index: Tensor | None = None):
         """The callable the sampler (`lerobot_rnd.sampler`) denoises with: it renders the actions it is given
         into the observation and runs the network. images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper
         (B, H); `history`: `render_history(images, T_world_ee)` (with "obs_tokens") if already computed."""
@@ -626,7 +655,7 @@ class RnDModel(nn.Module):
             inputs = self._network_inputs(
                 images, T_world_ee, gripper, T_ee_target, full_composite=full_composite, history=history
             )
-            displacement, update, logits = self._run_network(self.network, inputs, gripper, timestep, a)
+            displacement, update, logits = self._run_network(self.network, inputs, gripper, timestep, a, task_index)
             return DenoiserOutput(
                 update=update,
                 logits=logits,
@@ -639,7 +668,9 @@ class RnDModel(nn.Module):
 
         return denoise_fn
 
-    def denoise(self, images, T_world_ee, gripper, noise: Tensor, record: list | None = None):
+    def denoise(
+        self, images, T_world_ee, gripper, noise: Tensor, record: list | None = None, task_index: Tensor | None = None
+    ):
         """Sample a chunk from `noise` (B, T, 6) with `lerobot_rnd.sampler.sample_actions`: the past/current
         frames are rendered and tokenised once, every step renders the current actions. Returns (a_0 normalised
         (B, T, 6), gripper logits (B, T)); `record`, a list, receives the composite images of every pass."""
@@ -647,7 +678,7 @@ class RnDModel(nn.Module):
         with self._autocast(images.device.type):
             history["obs_tokens"] = self.network.embed_observation(history["obs_rgb"], history["obs_points"])
         return sample_actions(
-            self.denoiser(images, T_world_ee, gripper, history),
+            self.denoiser(images, T_world_ee, gripper, history, task_index),
             noise,
             self.inference_timesteps,
             self.inference_alpha_bar,
@@ -660,11 +691,14 @@ class RnDModel(nn.Module):
             record=record,
         )
 
-    def sampler_step(self, images, T_world_ee, gripper, a: Tensor, i: int, full_composite: bool = False):
+    def sampler_step(
+        self, images, T_world_ee, gripper, a: Tensor, i: int, full_composite: bool = False,
+        task_index: Tensor | None = None,
+    ):
         """Step i of the sampler alone (`lerobot_rnd.sampler.sampler_step`), for inspection: returns (a_next
         (B, T, 6), gripper logits (B, T), composite images (B, F, C, 3, h, w) when `full_composite`, else None)."""
         a_next, logits, valid, composite = sampler_step(
-            self.denoiser(images, T_world_ee, gripper),
+            self.denoiser(images, T_world_ee, gripper, task_index=task_index),
             a,
             self.inference_timesteps[i],
             self.inference_alpha_bar[i],
@@ -691,7 +725,7 @@ class RnDModel(nn.Module):
                 stacklevel=3,
             )
 
-    def _denoise_compiled(self, images, T_world_ee, gripper, noise):
+    def _denoise_compiled(self, images, T_world_ee, gripper, noise, task_index: Tensor | None = None):
         """`denoise` compiled with `torch.compile` (CUDA graphs on GPU) over static-shape rendering.
 
         The static rasteriser has fixed triangle capacities; if a render overflows them (a gripper far larger
@@ -703,27 +737,30 @@ class RnDModel(nn.Module):
         self._static_render = True
         self._render_overflow = torch.zeros((), dtype=torch.bool, device=images.device)
         try:
-            a, logits = self._compiled_sampler(images, T_world_ee, gripper, noise)
+            a, logits = self._compiled_sampler(images, T_world_ee, gripper, noise, task_index=task_index)
             overflow = bool(self._render_overflow)
         finally:
             self._static_render = False
         if overflow:
             logger.warning("Static rendering overflowed its triangle capacity; recomputing this chunk eagerly.")
-            a, logits = self.denoise(images, T_world_ee, gripper, noise)
+            a, logits = self.denoise(images, T_world_ee, gripper, noise, task_index=task_index)
         return a.clone(), logits.clone()
 
     @torch.no_grad()
-    def generate_actions(self, images: Tensor, state: Tensor, noise: Tensor | None = None) -> Tensor:
-        """images (B, H, C, 3, h0, w0), state (B, H, D) -> dataset actions (B, chunk_size, action_dim)."""
+    def generate_actions(
+        self, images: Tensor, state: Tensor, noise: Tensor | None = None, task_index: Tensor | None = None
+    ) -> Tensor:
+        """images (B, H, C, 3, h0, w0), state (B, H, D), task_index (B,) when conditioning on tasks -> dataset
+        actions (B, chunk_size, action_dim)."""
         self.meshes.check_loaded()
         images, T_world_ee, gripper = self.prepare_observation(images, state)
         b = images.shape[0]
         if noise is None:
             noise = torch.randn(b, self.config.chunk_size, 6, device=images.device)
         if self.config.inference_compile and images.device.type == "cuda":
-            a, logits = self._denoise_compiled(images, T_world_ee, gripper, noise)
+            a, logits = self._denoise_compiled(images, T_world_ee, gripper, noise, task_index)
         else:
-            a, logits = self.denoise(images, T_world_ee, gripper, noise)
+            a, logits = self.denoise(images, T_world_ee, gripper, noise, task_index=task_index)
         T_ee_target = pose_from_action(self.action_stats.unnormalize(a))
         gripper_action = torch.where(logits > 0, 1.0, -1.0)
         return self.action_adapter.from_rnd(T_ee_target, gripper_action, T_world_ee[:, -1], state=state[:, -1])

@@ -15,6 +15,8 @@ from lerobot_rnd.configuration_rnd import PATCH_EMBEDS
 #: Standard deviation of the initial frame, view, future-step and register embeddings (the authors use 1 and report
 #: that small values work much worse).
 EMBEDDING_INIT_STD = 1.0
+#: Hidden width of the transformer's MLP blocks relative to the model width (the paper's 4).
+MLP_RATIO = 4.0
 
 
 def sincos_2d_position_embedding(grid_h: int, grid_w: int, dim: int) -> Tensor:
@@ -153,6 +155,7 @@ class RnDDenoiser(nn.Module):
         use_point_map_input: bool,
         gripper_patches: int = 0,
         patch_embed: str = "linear",
+        n_tasks: int = 0,
     ):
         super().__init__()
         self.n_views = n_views
@@ -208,8 +211,12 @@ class RnDDenoiser(nn.Module):
         if self.image_head is not None:
             # Start from "no displacement" so early training is stable.
             nn.init.zeros_(self.image_head.weight)
+        # One learned token per task (the paper's goal embedding for its multi-task policy), made last so that a
+        # model without tasks draws the same initial weights as before.
+        self.task_embed = nn.Embedding(n_tasks, d) if n_tasks else None
         self.n_tokens = (
             (n_obs_steps * self.n_patches + horizon * self.future_patches) * n_views + self.n_frames + 2 + horizon
+            + (1 if n_tasks else 0)
         )
 
     def _patchify(self, images: Tensor, embed: nn.Module) -> Tensor:
@@ -240,15 +247,22 @@ class RnDDenoiser(nn.Module):
         noisy_action: Tensor | None,
         patch_index: Tensor | None = None,
         obs_tokens: Tensor | None = None,
+        task_index: Tensor | None = None,
     ) -> tuple[Tensor | None, Tensor | None, Tensor]:
         """`obs_tokens`: `embed_observation(obs_rgb, obs_points)` if already computed (the sampler computes it
-        once per chunk: the past/current frames do not change between denoising steps)."""
+        once per chunk: the past/current frames do not change between denoising steps). `task_index`: (B,) long,
+        each sample's task, required exactly when the network was built with tasks (`n_tasks` > 0)."""
         b, n_obs, c = obs_rgb.shape[:3]
         t_h = self.horizon
         if bool(self.gripper_patches) != (patch_index is not None):
             raise ValueError(
                 f"gripper_patches={self.gripper_patches}: pass `patch_index` (B, T, C, K) exactly when "
                 "gripper_patches > 0."
+            )
+        if (self.task_embed is not None) != (task_index is not None):
+            raise ValueError(
+                f"n_tasks={0 if self.task_embed is None else self.task_embed.num_embeddings}: pass `task_index` (B,) "
+                "exactly when the network conditions on tasks."
             )
         if obs_tokens is None:
             obs_tokens = self.embed_observation(obs_rgb, obs_points)  # (B, H, C, P, D)
@@ -270,10 +284,12 @@ class RnDDenoiser(nn.Module):
         if self.action_embed is not None:
             future_tokens = future_tokens + self.action_embed(noisy_action)
 
+        task_tokens = [] if task_index is None else [self.task_embed(task_index)[:, None]]
         x = torch.cat(
-            [image_tokens, gripper_tokens, step_token, self.register_token.expand(b, -1, -1), future_tokens],
+            [image_tokens, gripper_tokens, step_token, *task_tokens, self.register_token.expand(b, -1, -1),
+             future_tokens],
             dim=1,
-        )
+        )  # fmt: skip
         for block in self.blocks:
             x = block(x)
         x = self.norm(x)

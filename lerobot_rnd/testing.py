@@ -103,9 +103,16 @@ def _draw(embodiment: Embodiment, ee_pos: np.ndarray, target: np.ndarray) -> dic
     return out
 
 
+TOY_TASK = "reach the red target"
+
+
 def record_toy_dataset(root: Path, n_episodes: int = 3, episode_len: int = 16, seed: int = 0,
-                       repo_id: str = "local/toy_reach"):
-    """Write a LeRobot v3 dataset with PNG images plus its embodiment JSON; returns its root."""
+                       repo_id: str = "local/toy_reach", tasks: tuple[str, ...] = (TOY_TASK,)):
+    """Write a LeRobot v3 dataset with PNG images plus its embodiment JSON; returns its root.
+
+    With several `tasks`, every drawn start and target is recorded once per task: the first task moves towards the
+    target, every other one away from it (its deltas negated), so paired episodes start from identical observations
+    and only the `task` string says which way to go."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     embodiment = toy_embodiment()
@@ -121,19 +128,22 @@ def record_toy_dataset(root: Path, n_episodes: int = 3, episode_len: int = 16, s
     ds = LeRobotDataset.create(repo_id, fps=FPS, features=features, root=root, use_videos=False)
     rng = np.random.default_rng(seed)
     for _ in range(n_episodes):
-        ee = np.array([0.0, 0.0, 0.2]) + rng.uniform(-0.05, 0.05, 3)
+        start = np.array([0.0, 0.0, 0.2]) + rng.uniform(-0.05, 0.05, 3)
         target = np.array([rng.uniform(-0.08, 0.08), rng.uniform(-0.08, 0.08), 0.06])
-        for t in range(episode_len):
-            delta = np.clip((target - ee) / 0.01, -1, 1) * 0.8
-            grip = 1.0 if t >= episode_len // 2 else -1.0
-            images = _draw(embodiment, ee, target)
-            frame = {key: img for key, img in images.items()}
-            frame["observation.state"] = np.append(ee, -grip).astype(np.float32)
-            frame["action"] = np.append(delta, grip).astype(np.float32)
-            frame["task"] = "reach the red target"
-            ds.add_frame(frame)
-            ee = ee + delta * 0.01
-        ds.save_episode()
+        for task_number, task in enumerate(tasks):
+            direction = 1.0 if task_number == 0 else -1.0
+            ee = start.copy()
+            for t in range(episode_len):
+                delta = direction * np.clip((target - ee) / 0.01, -1, 1) * 0.8
+                grip = 1.0 if t >= episode_len // 2 else -1.0
+                images = _draw(embodiment, ee, target)
+                frame = {key: img for key, img in images.items()}
+                frame["observation.state"] = np.append(ee, -grip).astype(np.float32)
+                frame["action"] = np.append(delta, grip).astype(np.float32)
+                frame["task"] = task
+                ds.add_frame(frame)
+                ee = ee + delta * 0.01
+            ds.save_episode()
     ds.finalize()
     embodiment.save_json(Path(root) / EMBODIMENT_FILE_IN_DATASET)
     return Path(root)
