@@ -62,7 +62,7 @@ def test_an_unknown_or_missing_task_is_refused_naming_the_known_tasks(two_task_r
     assert policy.predict_action_chunk({**obs, "task": AWAY}).shape[0] == 2  # one string for the whole batch
 
 
-@pytest.mark.slow  # about 3 minutes of training on 2 CPU cores; CI runs it (README's slow command)
+@pytest.mark.slow  # under a minute of training on 2 idle CPU cores, minutes when they are shared; CI runs it
 def test_the_task_token_separates_tasks_with_identical_observations(two_task_root):
     """Paired episodes start from the same images and state and go opposite ways: after training, the first
     predicted step at those shared starts follows the task string (towards the target for one, away for the other)."""
