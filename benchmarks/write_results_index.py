@@ -61,6 +61,8 @@ STATUS: dict[str, tuple[str, str]] = {
     "loss_parity_before.json": (CURRENT, "First 20 training losses of every shipped rnd config before the config "
                                 "was made lean (benchmarks/loss_parity.py)."),
     "loss_parity_after.json": (CURRENT, "The same after it: equal to loss_parity_before.json."),
+    "panda_spatial": (CURRENT, "Issue 33, in progress: Panda push-block, spatial protocol (furthest-point demos from "
+                      "the centre, 27-cell x/y/yaw grid), 3,000 steps; so far R&D-AI with 2 demos: 0/27."),
     # ---- archived: superseded or exploratory ----
     "cpu": (ARCHIVED, "The first CPU benchmark: 1,000 steps, the earlier linear patch embedding, 4-step sampling; "
             "superseded by the 3,000-step runs."),
