@@ -406,3 +406,46 @@ def test_a_finished_collected_run_wins_over_an_unfinished_local_one(tmp_path):
     assert trained == []
     (run,) = b.collect()
     assert run["successes"] == 1 and "/other/runs/" in run["collected_from"]
+
+
+def test_multitask_dry_run_records_one_dataset_and_evaluates_every_task_in_one_call(tmp_path):
+    cmds = _dry_run(tmp_path, "--multitask", "--tasks", "reach-v3,drawer-close-v3", "--methods", "rnd_ai,act")
+    rec = [c for c in cmds if "lerobot-rnd-record" in c]
+    train = [c for c in cmds if "lerobot-train" in c]
+    ev = [c for c in cmds if "lerobot-eval" in c]
+    assert len(rec) == 1 and len(train) == 2 and len(ev) == 2
+    assert "--task reach-v3,drawer-close-v3 --episodes 3" in rec[0]
+    root = rec[0].split("--root ")[1].split()[0]
+    for c in train:
+        assert f"--dataset.root={root}" in c and "--env.task=reach-v3,drawer-close-v3" in c
+    for c in ev:
+        assert "--env.task=reach-v3,drawer-close-v3" in c and "--eval.n_episodes=2" in c
+    with pytest.raises(SystemExit):
+        cli.parse_args(["--scale", "smoke", "--multitask", "--tasks", "reach-v3"])
+    with pytest.raises(SystemExit):
+        cli.parse_args(["--scale", "smoke", "--multitask", "--tasks", "reach-v3,push-v3", "--protocol", "spatial"])
+
+
+def test_a_multitask_run_gives_one_row_per_task_and_counts_its_cost_once(tmp_path):
+    a = cli.parse_args(["--scale", "smoke", "--multitask", "--tasks", "reach-v3,drawer-close-v3", "--methods", "act",
+                        "--out", str(tmp_path / "o"), "--work-dir", str(tmp_path / "w"), "--data-dir",
+                        str(tmp_path / "d")])  # fmt: skip
+    b = Benchmark(a)
+    unit = "reach-v3,drawer-close-v3"
+    assert b.units == [unit]
+    st = {"status": "done", "method": "act", "task": unit, "tasks": ["reach-v3", "drawer-close-v3"], "demos": 3,
+          "seed": 0, "eval_chunks": {"0:2": {"successes": {"reach-v3": [True, True], "drawer-close-v3": [False, True]},
+                                             "wall_s": 5.0, "dir": "x"}},
+          "train_slices": [{"start_step": 0, "end_step": 2, "wall_s": 3.0, "loop_s": 2.0, "rc": 0, "stopped": None}],
+          "loss_curve": [[1, 0.5], [2, 0.4]]}  # fmt: skip
+    path = b.result_path("act", unit, 3, 0)
+    assert path.name == "act__reach-v3+drawer-close-v3__n3__seed0.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps(st))
+    rows = b.collect()
+    assert [(r["task"], r["successes"], r["eval_episodes"]) for r in rows] == [("reach-v3", 2, 2),
+                                                                           ("drawer-close-v3", 1, 2)]
+    assert all(r["training"] == "multi-task" and r["trained_on"] == ["reach-v3", "drawer-close-v3"] for r in rows)
+    assert [r["train_seconds"] for r in rows] == [2.0, None] and [r["eval_seconds"] for r in rows] == [5.0, 0]
+    assert rows[0]["loss_curve"] and rows[1]["loss_curve"] is None
+    assert b.dataset_root(unit, 10)[1].startswith("local/mw_mt2-") and len(b.dataset_root(unit, 10)[1]) < 60

@@ -58,6 +58,14 @@ FLAG_ERRORS = {
         ["--suite", "panda", "--task", "reach-v3"], False, ValueError,
         ["--task reach-v3 is a MetaWorld V3 task", "drop --suite panda"],
     ),
+    "repeated-task": (
+        ["--task", "reach-v3,drawer-close-v3,reach-v3"], False, ValueError,
+        ["--task names reach-v3 more than once", "list each task once"],
+    ),
+    "one-unknown-task-of-several": (
+        ["--task", "reach-v3,drawer-clos-v3"], False, ValueError,
+        ["--task drawer-clos-v3", "did you mean drawer-close-v3"],
+    ),
     "episodes-zero": (["--episodes", "0"], False, ValueError, ["--episodes", "must be >= 1, got 0"]),
     "episode-longer-than-metaworld-allows": (
         ["--max-steps", "495", "--extra-steps", "10"], False, ValueError,

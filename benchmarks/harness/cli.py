@@ -39,6 +39,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--protocol", choices=["random", "spatial"], default="random",
                    help="random: uniform placements, seeded evaluation; spatial: furthest-point-sampled demos, "
                         "evaluation on a grid, heat maps")  # fmt: skip
+    p.add_argument("--multitask", action="store_true",
+                   help="one policy per method and demo count trained on all --tasks together (one dataset with "
+                        "--demos of each task, every frame with its task's description) and evaluated on each task "
+                        "(lerobot-eval --env.task=a,b,c); random protocol only")  # fmt: skip
     p.add_argument("--seed", default="0", help="training seed(s), comma-separated (one run per seed)")
     p.add_argument("--record-seed", type=int, default=0, help="placement seed of the recorded demos")
     p.add_argument("--eval-seed", type=int, default=1000, help="first evaluation seed (episode i: seed + i)")
@@ -113,6 +117,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         bad = [t for t in a.tasks if t not in PANDA_TASKS]
         if bad:
             p.error(f"--suite panda: {bad} are not Panda tasks; tasks: {', '.join(PANDA_TASKS)}")
+    if a.multitask and len(a.tasks) < 2:
+        p.error("--multitask trains one policy on several tasks: name two or more with --tasks")
+    if a.multitask and a.protocol != "random":
+        p.error("--multitask evaluates with lerobot-eval's seeded placements: use --protocol random")
     if a.train_only and a.eval_only:
         p.error("--train-only and --eval-only exclude each other")
     if a.prune_optimizer is None:

@@ -119,6 +119,10 @@ def markdown_report(res: dict) -> str:
         f"{st['record_seed']}; evaluation seeds from {st['eval_seed']} ({st['eval_episodes_per_cell']} episodes "
         f"per cell, {st['episode_length']}-step episodes).",
     ]
+    if b.get("multitask"):
+        lines += ["", f"**Multi-task** (`--multitask`): per method and demo count, one policy trained on all "
+                  f"{len(b['tasks'])} tasks together ({', '.join(b['tasks'])}; the demo count is per task) and "
+                  "evaluated on each; training and evaluation cost are counted once per run."]  # fmt: skip
     if b["scale"] == "smoke":
         lines += ["", "**Smoke scale: tiny models trained for a few steps. These numbers test the pipeline; "
                   "they say nothing about the methods.**"]  # fmt: skip

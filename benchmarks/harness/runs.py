@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import hashlib
 import math
 import os
 import platform
@@ -38,6 +39,16 @@ DEMO_PLACEMENTS = {
 }  # fmt: skip
 
 
+def unit_tasks(unit: str) -> list[str]:
+    """The tasks of a training unit: one task, or the comma-separated tasks of a --multitask run."""
+    return [t for t in unit.split(",") if t]
+
+
+def unit_name(unit: str) -> str:
+    """A training unit in file names: the task, or the tasks joined by '+' (multi-task)."""
+    return "+".join(unit_tasks(unit))
+
+
 def override_flags(args: list[str]) -> list[str]:
     """Keep only the last `--key=value` of each key (later, more specific flags override earlier ones), in the
     position of that last occurrence. LeRobot's parser does not accept a flag twice."""
@@ -61,6 +72,8 @@ class Benchmark:
         self.suite_name = getattr(a, "suite", "metaworld")
         self.suite = SUITES[self.suite_name]
         self.collect_from = [self._source_folder(Path(f)) for f in a.collect_from]
+        #: what one training run covers: each task on its own, or (--multitask) all tasks together
+        self.units = [",".join(a.tasks)] if getattr(a, "multitask", False) else list(a.tasks)
 
     # ------------------------------------------------------------------ budget
     def remaining(self) -> float:
@@ -76,7 +89,12 @@ class Benchmark:
         return self.suite["fps_mode"] if self.a.protocol == "spatial" else "random"
 
     def dataset_root(self, task: str, n: int) -> tuple[Path, str]:
+        """The dataset of a unit (one task, or a --multitask unit's tasks: ``mt<k>-<hash of the task list>``, short
+        enough for a repo id; its recording log names the tasks) and ``n`` demos (per task)."""
         a = self.a
+        tasks = unit_tasks(task)
+        if len(tasks) > 1:
+            task = f"mt{len(tasks)}-{hashlib.sha1(','.join(tasks).encode()).hexdigest()[:8]}"
         name = f"{self.suite['dataset_prefix']}_{task}_{self.placements_mode()}_s{a.record_seed}_n{n}"
         return self.data_dir / name, f"local/{name}"
 
@@ -138,12 +156,22 @@ class Benchmark:
                 "expert_failures": sum(1 for x in rec.get("attempts", []) if not x.get("success")),
                 "eval_env_args": env_args,
             }  # fmt: skip
+            if len(unit_tasks(task)) > 1:  # per task (the recorder writes the tasks one after the other)
+                by_task = {t: [x for x in kept if x.get("task") == t][:n] for t in unit_tasks(task)}
+                self.datasets[task][n].update(
+                    tasks=unit_tasks(task), placements=None, placement_indices=None,
+                    placements_by_task={t: [x["placement"] for x in v] for t, v in by_task.items()},
+                    placement_indices_by_task={t: [x["placement_index"] for x in v] for t, v in by_task.items()})
             prev_root = root
         # check the nesting (smaller sets = first episodes of the larger ones)
         ns = sorted(self.datasets[task])
         for small, big in zip(ns, ns[1:], strict=False):
             s, b = self.datasets[task][small], self.datasets[task][big]
-            s["prefix_of_next"] = bool(b["placements"][: len(s["placements"])] == s["placements"])
+            if "placements_by_task" in s:  # multi-task: each task's demos are the first of the larger set's
+                s["prefix_of_next"] = all(b["placements_by_task"][t][: len(v)] == v
+                                          for t, v in s["placements_by_task"].items())  # fmt: skip
+            else:
+                s["prefix_of_next"] = bool(b["placements"][: len(s["placements"])] == s["placements"])
             if s["eval_env_args"] != b["eval_env_args"]:
                 raise ValueError(
                     f"{task}: the {small}- and {big}-demo datasets were recorded with different observations "
@@ -179,8 +207,10 @@ class Benchmark:
                     n_third=getattr(a, "grid_yaws", 1), layout=self.suite["grid_layout"], others=self.suite["grid_others"]))
         finally:
             env.close()
-        # held-out check against every training placement of this task
+        # held-out check against every training placement of this task (in its own or a multi-task dataset)
         train = [p for d in self.datasets.get(task, {}).values() for p in d["placements"]]
+        train += [p for unit, ds in self.datasets.items() if unit != task for d in ds.values()
+                  for p in (d.get("placements_by_task") or {}).get(task, [])]  # fmt: skip
         if train and out["placements"]:
             P = (np.asarray(out["placements"]) - low) / span
             T = (np.asarray(train) - low) / span
@@ -209,7 +239,7 @@ class Benchmark:
         return e
 
     def run_dir(self, method: str, task: str, n: int, seed: int) -> Path:
-        return self.work / "runs" / self.a.protocol / method / task / f"n{n}" / f"seed{seed}"
+        return self.work / "runs" / self.a.protocol / method / unit_name(task) / f"n{n}" / f"seed{seed}"
 
     def config_file(self, method: str) -> Path:
         files = suite_scale_defaults(self.suite_name, self.a.scale).get("config_files", {})
@@ -233,7 +263,7 @@ class Benchmark:
             f"--config_path={self.config_file(method)}",
             f"--dataset.repo_id={repo_id}", f"--dataset.root={root}", "--dataset.video_backend=pyav",
             f"--env.task={task}", f"--env.episode_length={a.episode_length}",
-            f"--output_dir={out_dir}", f"--job_name={method}_{task}_n{n}_s{seed}",
+            f"--output_dir={out_dir}", f"--job_name={method}_{unit_name(task)}_n{n}_s{seed}",
             f"--seed={seed}", f"--steps={a.steps}", f"--batch_size={a.batch_size}",
             f"--num_workers={a.num_workers}", f"--save_freq={save_freq}", f"--log_freq={a.log_freq}",
             "--eval_freq=0", "--wandb.enable=false",
@@ -364,7 +394,8 @@ class Benchmark:
         rdir = self.run_dir(method, task, n, seed)
         ckpt = (rdir / "train" / "checkpoints" / "last").resolve() / "pretrained_model"
         st["checkpoint"] = _rel(ckpt)
-        es = self.eval_set(task)
+        tasks = unit_tasks(task)
+        es = self.eval_set(tasks[0])  # a multi-task unit: the same seeds for every task, each task's placements
         total = len(es["placements"])
         chunk = a.eval_chunk if a.eval_chunk > 0 else total
         chunks = st.setdefault("eval_chunks", {})
@@ -402,12 +433,20 @@ class Benchmark:
             info = _read_json(edir / "eval_info.json")
             if r.rc != 0 or info is None:
                 raise RuntimeError(f"evaluation failed (rc {r.rc}); log {rdir / 'eval.log'}:\n{r.tail}")
-            succ = [bool(x) for x in info["per_task"][0]["metrics"]["successes"]][:k]
-            if len(succ) != k:
-                raise RuntimeError(f"eval_info.json holds {len(succ)} episodes, expected {k}")
-            rewards = info["per_task"][0]["metrics"].get("max_rewards") or []
-            chunks[key] = {"successes": succ, "max_rewards": [round(float(x), 6) for x in rewards[:k]],
-                           "wall_s": round(r.wall_s, 2),
+            if len(tasks) == 1:
+                metrics = {task: info["per_task"][0]["metrics"]}
+            else:  # lerobot-eval's per-task entries of --env.task=a,b,c: one group per task
+                metrics = {e["task_group"]: e["metrics"] for e in info["per_task"]}
+                if sorted(metrics) != sorted(tasks):
+                    raise RuntimeError(f"eval_info.json has the tasks {sorted(metrics)}, expected {tasks}")
+            succ = {t: [bool(x) for x in m["successes"]][:k] for t, m in metrics.items()}
+            rewards = {t: [round(float(x), 6) for x in (m.get("max_rewards") or [])[:k]] for t, m in metrics.items()}
+            short = {t: len(v) for t, v in succ.items() if len(v) != k}
+            if short:
+                raise RuntimeError(f"eval_info.json holds {short} episodes, expected {k} per task")
+            if len(tasks) == 1:
+                succ, rewards = succ[task], rewards[task]
+            chunks[key] = {"successes": succ, "max_rewards": rewards, "wall_s": round(r.wall_s, 2),
                            "eval_s": info.get("overall", {}).get("eval_s"), "dir": _rel(edir)}  # fmt: skip
             _write_json(rdir / "run.json", st)
 
@@ -429,11 +468,11 @@ class Benchmark:
         print(f"benchmark: scale {a.scale}, protocol {a.protocol}, tasks {a.tasks}, demos {a.demos}, "
               f"methods {a.methods}, seeds {a.seeds}; work dir {self.work}", flush=True)  # fmt: skip
         try:
-            for task in a.tasks:
-                self.record(task)
+            for unit in self.units:
+                self.record(unit)
             for task in a.tasks:
                 self.eval_set(task)
-            for task in a.tasks:
+            for task in self.units:
                 for n in a.demos:
                     for seed in a.seeds:
                         for method in a.methods:
@@ -448,7 +487,7 @@ class Benchmark:
 
     def result_path(self, method: str, task: str, n: int, seed: int) -> Path:
         """The committed JSON of one finished run (survives a fresh clone; the work dir does not)."""
-        return self.out / "runs" / f"{method}__{task}__n{n}__seed{seed}.json"
+        return self.out / "runs" / f"{method}__{unit_name(task)}__n{n}__seed{seed}.json"
 
     def run_state(self, method: str, task: str, n: int, seed: int) -> dict:
         """This folder's state of a run (its work dir's run.json, else its result JSON); a finished run in a
@@ -510,6 +549,8 @@ class Benchmark:
             return
         st.update(method=method, task=task, demos=n, seed=seed, protocol=a.protocol, scale=a.scale, suite=self.suite_name,
                   status="running", code_commit=st.get("code_commit") or git_commit())  # fmt: skip
+        if len(unit_tasks(task)) > 1:
+            st["tasks"] = unit_tasks(task)  # one policy trained on all of them (--multitask), evaluated on each
         print(f"=== {method} / {task} / {n} demos / seed {seed}", flush=True)
         try:
             if not a.eval_only:
@@ -542,48 +583,63 @@ class Benchmark:
 
     # ------------------------------------------------------------------ reports
     def collect(self) -> list[dict]:
+        """One row per (method, task, demos, seed); a --multitask run gives one row per task, all with the same
+        checkpoint, and its training and evaluation cost and loss curve on its first task's row only (so that sums
+        over rows count each run once)."""
         a = self.a
         runs = []
-        for task in a.tasks:
+        for unit in self.units:
             for n in a.demos:
                 for seed in a.seeds:
                     for method in a.methods:
-                        rdir = self.run_dir(method, task, n, seed)
-                        st = self.run_state(method, task, n, seed)
-                        es = self.eval_sets.get(task, {})
-                        succ: list[bool] = []
-                        seeds: list = []
-                        for key, c in sorted(st.get("eval_chunks", {}).items(), key=lambda kv: int(kv[0].split(":")[0])):
-                            s0 = int(key.split(":")[0])
-                            succ += c["successes"]
-                            seeds += es.get("seeds", [])[s0 : s0 + len(c["successes"])]
-                        k, m = sum(succ), len(succ)
-                        lo, hi = wilson_interval(k, m)
-                        slices = st.get("train_slices", [])
-                        loop = [s["loop_s"] for s in slices if s.get("loop_s") is not None]
-                        runs.append({
-                            "method": method, "label": METHODS[method][1], "task": task, "demos": n, "seed": seed,
-                            "protocol": a.protocol, "suite": self.suite_name, "status": st.get("status", "pending"),
-                            "steps": a.steps, "batch_size": a.batch_size,
-                            "steps_done": max((s["end_step"] for s in slices), default=0),
-                            "n_params": st.get("n_params"),
-                            "train_seconds": round(sum(loop), 2) if loop else None,
-                            "train_wall_seconds": round(sum(s["wall_s"] for s in slices), 2) if slices else None,
-                            "train_slices": slices,
-                            "eval_episodes": m, "eval_episodes_planned": len(es.get("placements", [])),
-                            "successes": k, "success_rate": (k / m) if m else None,
-                            "ci95": [lo, hi] if m else None,
-                            "eval_seconds": round(sum(c["wall_s"] for c in st.get("eval_chunks", {}).values()), 2),
-                            "per_episode_success": succ,
-                            "eval_seeds": seeds if a.protocol == "random" else None,
-                            "checkpoint": st.get("checkpoint"),
-                            "loss_curve": st.get("loss_curve"),
-                            "run_dir": None if st.get("collected_from") else _rel(rdir),
-                            "collected_from": st.get("collected_from"),
-                            "commands": st.get("commands", {}),
-                            "error": st.get("error"),
-                        })  # fmt: skip
+                        rdir = self.run_dir(method, unit, n, seed)
+                        st = self.run_state(method, unit, n, seed)
+                        for i, task in enumerate(unit_tasks(unit)):
+                            runs.append(self._row(method, unit, task, n, seed, rdir, st, first=i == 0))
         return runs
+
+    def _row(self, method: str, unit: str, task: str, n: int, seed: int, rdir: Path, st: dict, first: bool) -> dict:
+        """results.json's row of ``task`` in the run ``st`` of ``unit``."""
+        a = self.a
+        multitask = len(unit_tasks(unit)) > 1
+        es = self.eval_sets.get(task, {})
+        succ: list[bool] = []
+        seeds: list = []
+        for key, c in sorted(st.get("eval_chunks", {}).items(), key=lambda kv: int(kv[0].split(":")[0])):
+            s0 = int(key.split(":")[0])
+            chunk = c["successes"][task] if multitask else c["successes"]
+            succ += chunk
+            seeds += es.get("seeds", [])[s0 : s0 + len(chunk)]
+        k, m = sum(succ), len(succ)
+        lo, hi = wilson_interval(k, m)
+        slices = st.get("train_slices", [])
+        loop = [s["loop_s"] for s in slices if s.get("loop_s") is not None]
+        cost = first or not multitask
+        row = {
+            "method": method, "label": METHODS[method][1], "task": task, "demos": n, "seed": seed,
+            "protocol": a.protocol, "suite": self.suite_name, "status": st.get("status", "pending"),
+            "steps": a.steps, "batch_size": a.batch_size,
+            "steps_done": max((s["end_step"] for s in slices), default=0),
+            "n_params": st.get("n_params"),
+            "train_seconds": round(sum(loop), 2) if loop and cost else None,
+            "train_wall_seconds": round(sum(s["wall_s"] for s in slices), 2) if slices and cost else None,
+            "train_slices": slices,
+            "eval_episodes": m, "eval_episodes_planned": len(es.get("placements", [])),
+            "successes": k, "success_rate": (k / m) if m else None,
+            "ci95": [lo, hi] if m else None,
+            "eval_seconds": round(sum(c["wall_s"] for c in st.get("eval_chunks", {}).values()), 2) if cost else 0,
+            "per_episode_success": succ,
+            "eval_seeds": seeds if a.protocol == "random" else None,
+            "checkpoint": st.get("checkpoint"),
+            "loss_curve": st.get("loss_curve") if cost else None,
+            "run_dir": None if st.get("collected_from") else _rel(rdir),
+            "collected_from": st.get("collected_from"),
+            "commands": st.get("commands", {}),
+            "error": st.get("error"),
+        }  # fmt: skip
+        if multitask:
+            row.update(trained_on=unit_tasks(unit), training="multi-task")
+        return row
 
     def write_reports(self) -> None:
         a = self.a
@@ -621,7 +677,7 @@ class Benchmark:
             settings["demo_placements"] = DEMO_PLACEMENTS[self.placements_mode()]
         result = {
             "benchmark": {
-                "scale": a.scale, "suite": self.suite_name, "protocol": a.protocol, "tasks": a.tasks, "demos": a.demos, "methods": a.methods,
+                "scale": a.scale, "suite": self.suite_name, "protocol": a.protocol, "multitask": bool(getattr(a, "multitask", False)), "tasks": a.tasks, "demos": a.demos, "methods": a.methods,
                 "seeds": a.seeds, "device": a.device, "complete": complete, "harness_version": HARNESS_VERSION,
                 "started": self.started, "written": dt.datetime.now().isoformat(timespec="seconds"),
                 "command": shlex.join([sys.executable, *sys.argv]), "train_arg": a.train_arg or [],

@@ -5,7 +5,8 @@ LeRobot's ``--env.type=rnd_mw``, the Panda suite's ``gym_rnd_panda/<task>`` and 
 scenes need gym-hil's assets: ``pip install --no-deps gym-hil==0.1.14``), and the embodiment presets
 ``metaworld_sawyer``, ``metaworld_sawyer_lerobot`` and ``panda_robotiq``. MuJoCo / MetaWorld are imported only
 when an env or a preset is built; headless machines then default to ``MUJOCO_GL=egl``
-(:func:`~lerobot_rnd.sim.mujoco_env.default_headless_gl`).
+(:func:`~lerobot_rnd.sim.mujoco_env.default_headless_gl`). ``--env.task=a,b,c`` evaluates several tasks in one
+``lerobot-eval`` (:mod:`lerobot_rnd.sim.multitask`, which routes LeRobot's ``make_env`` for these two env types).
 """
 
 from lerobot_rnd.sim import panda_env  # noqa: F401  (registers gym_rnd_panda/*, rnd_panda, panda_robotiq)
@@ -15,6 +16,9 @@ from lerobot_rnd.sim.metaworld_env import (
     RnDMetaWorldEnv,
     RnDMetaWorldEnvConfig,
 )
+from lerobot_rnd.sim.multitask import install_multitask_make_env
+
+install_multitask_make_env()
 
 __all__ = [
     "GYM_NAMESPACE",

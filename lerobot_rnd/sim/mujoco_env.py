@@ -39,13 +39,18 @@ def default_headless_gl() -> None:
 
 
 def register_gym_envs(namespace: str, tasks: Sequence[str], entry_point: str) -> None:
-    """Register ``<namespace>/<task>`` for every task with ``entry_point`` (idempotent)."""
+    """Register ``<namespace>/<task>`` for every task with ``entry_point`` (idempotent).
+
+    Without gymnasium's order-enforcing wrapper, so that ``gym.make`` returns the env itself and LeRobot's
+    ``add_envs_task`` finds its ``task_description`` (a wrapper hides it: the policy would get ``task=""``)."""
     from gymnasium.envs.registration import registry
 
     for task in tasks:
         env_id = f"{namespace}/{task}"
         if env_id not in registry:
-            gym.register(id=env_id, entry_point=entry_point, kwargs={"task": task})
+            gym.register(
+                id=env_id, entry_point=entry_point, kwargs={"task": task}, order_enforce=False, disable_env_checker=True
+            )
 
 
 class RnDMuJoCoEnv(gym.Env):

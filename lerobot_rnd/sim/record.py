@@ -5,6 +5,8 @@
         [--fps-pool 1000] [--image-size 128] [--cameras corner2,behindGripper] [--resume]
     lerobot-rnd-record --suite panda --task lift-cube --episodes 20 \\
         --root outputs/data/panda_lift --repo-id local/panda_lift
+    lerobot-rnd-record --task drawer-close-v3,reach-v3 --episodes 10 \\
+        --root outputs/data/mw_two_tasks --repo-id local/mw_two_tasks      # 10 demos of each, one dataset
 
 Suites: ``metaworld`` (default; ``lerobot_rnd.sim.metaworld_env``, MetaWorld V3 tasks, 80 fps, 4-D
 actions) and ``panda`` (``lerobot_rnd.sim.panda_env``: Franka Panda + Robotiq on gym-hil's assets, tasks
@@ -18,6 +20,11 @@ draws them uniformly from the task's range (seeded); ``fps`` picks them by furth
 seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread); ``fps-centre`` starts at the centre of
 the range and spreads only the object's x, y and yaw for Panda tasks (``PlacementSequence``). ``--list-tasks`` lists the
 tasks of both suites.
+
+Several tasks (``--task a,b,c``) go into one dataset, task after task, ``--episodes`` of each; every frame's
+``task`` is its task's description (what ``lerobot-eval --env.task=a,b,c`` passes to the policy). Each task's
+placements are the sequence a one-task recording with the same ``--seed`` uses, so the multi-task dataset holds the
+demos of the one-task datasets. The tasks must see through the same cameras (one calibration per dataset).
 
 Each episode's parquet files are closed once it is saved, so a recorder that is stopped, even by SIGKILL,
 leaves a loadable dataset of its saved episodes; ``--resume`` removes whatever an unsaved episode left
@@ -51,6 +58,8 @@ from pathlib import Path
 import numpy as np
 
 from lerobot_rnd.embodiment import EMBODIMENT_FILE_IN_DATASET
+from lerobot_rnd.sim.episode_files import close_episode_files, discard_unsaved_episode
+from lerobot_rnd.sim.multitask import task_list
 from lerobot_rnd.sim.placements import (  # noqa: F401  (re-exported: scripts and tests import them from here)
     PLACEMENT_MODES,
     PlacementSequence,
@@ -292,7 +301,15 @@ def check_settings(settings: RecordSettings) -> RecordSettings:
     from dataclasses import replace
 
     s = settings
-    check_task(s.suite, s.task)
+    tasks = task_list(s.task)
+    if not tasks:
+        raise SettingError("--task is empty: name a task, or several separated by commas")
+    repeated = sorted({t for t in tasks if tasks.count(t) > 1})
+    if repeated:
+        raise SettingError(f"--task names {', '.join(repeated)} more than once: list each task once")
+    for task in tasks:
+        check_task(s.suite, task)
+    s = replace(s, task=",".join(tasks))
     if s.suite == "panda" and s.cameras == RecordSettings().cameras:
         s = replace(s, cameras=list(PANDA_DEFAULT_CAMERAS))
     if s.suite == "panda" and s.flip_cameras:
@@ -406,12 +423,16 @@ def record(settings: RecordSettings, progress: bool = True) -> dict:
     log, have = {"settings": asdict(s), "attempts": []}, 0
     if root.exists():
         log, have = _prepare_resume(s, root, features)
-        if have >= s.episodes:
-            message = f"{root} already holds {have} episodes; --episodes is the total number wanted; nothing to record"
+        tasks = task_list(s.task)
+        counts = {tasks[0]: have} if len(tasks) == 1 else saved_per_task(log, tasks)
+        if have and all(n >= s.episodes for n in counts.values()):
+            what = "" if len(tasks) == 1 else f" ({s.episodes} or more of each of its {len(tasks)} tasks)"
+            message = (f"{root} already holds {have} episodes{what}; --episodes is the total number wanted"
+                       f"{'' if len(tasks) == 1 else ' per task'}; nothing to record")
             return {"root": str(root), "repo_id": s.repo_id, "episodes": have, "new_frames": 0, "attempts": 0,
                     "failures": 0, "seconds": 0.0, "message": message}  # fmt: skip
-    env, expert, fps, robot_type = (_metaworld_env if s.suite == "metaworld" else _panda_env)(s)
-    return _record(s, env, expert, features, fps, robot_type, log, have, progress)
+    make_env_expert = _metaworld_env if s.suite == "metaworld" else _panda_env
+    return _record(s, make_env_expert, features, log, have, progress)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -454,7 +475,7 @@ def _prepare_resume(s: RecordSettings, root: Path, features: dict) -> tuple[dict
             )
         log["settings"] = asdict(s)
     _check_features(json.loads(info_path.read_text())["features"], features, root)
-    have = _discard_unsaved_episode(root)
+    have = discard_unsaved_episode(root)
     attempts = log["attempts"]
     unsaved = (
         i for i, a in enumerate(attempts) if a.get("episode_index") is not None and a["episode_index"] >= have
@@ -489,104 +510,67 @@ def _check_features(have: dict, expected: dict, root: Path) -> None:
             )
 
 
-def _discard_unsaved_episode(root: Path) -> int:
-    """Remove what a recorder stopped while saving an episode left behind; returns the number of saved episodes.
-
-    The recorder closes an episode's parquet files once it is saved (:func:`_close_episode_files`); one
-    stopped inside LeRobot's ``save_episode`` can leave parquet files without footer, a data file that no
-    episode refers to, and ``meta/info.json`` / ``stats.json`` counting the unsaved episode. Those files are
-    removed and the counts and statistics recomputed from ``meta/episodes``, as are the temporary PNGs of an
-    episode cut short (``images/``)."""
-    import pyarrow.parquet as pq
-    from lerobot.datasets.compute_stats import aggregate_stats
-    from lerobot.datasets.utils import cast_stats_to_numpy, unflatten_dict, write_stats
-
-    removed = []
-    if (root / "images").is_dir():
-        shutil.rmtree(root / "images")
-        removed.append("images/")
-    episode_files = sorted((root / "meta" / "episodes").glob("*/*.parquet"))
-    data_files = sorted((root / "data").glob("*/*.parquet"))
-    for p in episode_files + data_files:
-        try:
-            pq.read_metadata(p)
-        except Exception:  # noqa: BLE001 - any unreadable file is the unsaved episode's
-            p.unlink()
-            removed.append(str(p.relative_to(root)))
-    episodes = [row for p in episode_files if p.exists() for row in pq.read_table(p).to_pylist()]
-    info_path = root / "meta" / "info.json"
-    info = json.loads(info_path.read_text())
-    referenced = {
-        root / info["data_path"].format(chunk_index=e["data/chunk_index"], file_index=e["data/file_index"])
-        for e in episodes
-    }
-    for p in data_files:
-        if p.exists() and p not in referenced:
-            p.unlink()
-            removed.append(str(p.relative_to(root)))
-    n, frames = len(episodes), sum(e["length"] for e in episodes)
-    if (info["total_episodes"], info["total_frames"]) != (n, frames):
-        info.update(total_episodes=n, total_frames=frames, splits={"train": f"0:{n}"})
-        info_path.write_text(json.dumps(info, indent=4))
-        if n:
-            stats = [cast_stats_to_numpy(unflatten_dict({k.removeprefix("stats/"): v for k, v in e.items()
-                                                         if k.startswith("stats/")})) for e in episodes]  # fmt: skip
-            write_stats(aggregate_stats(stats), root)
-        else:
-            (root / "meta" / "stats.json").unlink(missing_ok=True)
-        removed.append("the unsaved episode from meta/info.json and meta/stats.json")
-    if removed:
-        logger.warning(f"{root}: removed what an unsaved episode left: {', '.join(removed)}")
-    return n
-
-
-def _close_episode_files(dataset) -> None:
-    """Close the parquet files of the episode just saved (LeRobot keeps them open, without footer, until
-    ``finalize``), so that a killed recorder leaves a loadable dataset. The next episode then goes to new
-    files, as after a resume: each episode has its own data and meta/episodes file."""
-    import datasets
-    from lerobot.datasets.utils import DEFAULT_EPISODES_PATH
-    from lerobot.utils.utils import SuppressProgressBars
-
-    dataset.finalize()
-    # what LeRobot reads when it resumes (meta.episodes), extended by the episode's row only: reloading all
-    # of meta/episodes would cost time in proportion to the episodes recorded, after every episode
-    latest = dataset.meta.latest_episode
-    path = dataset.root / DEFAULT_EPISODES_PATH.format(
-        chunk_index=latest["meta/episodes/chunk_index"][0], file_index=latest["meta/episodes/file_index"][0]
-    )
-    with SuppressProgressBars():
-        row = datasets.Dataset.from_parquet(str(path))
-    row = row.select_columns([k for k in row.column_names if not k.startswith("stats/")])
-    old = dataset.meta.episodes
-    dataset.meta.episodes = row if old is None else datasets.concatenate_datasets([old, row])
-    dataset.meta.latest_episode = None  # -> the next episode starts new files after meta.episodes[-1]
-    dataset.latest_episode = None
-
-
 # --------------------------------------------------------------------------------------------------
 # the recording loop
 # --------------------------------------------------------------------------------------------------
+def attempt_task(attempt: dict, log_settings: dict) -> str:
+    """The task of one entry of a recording log's attempts (logs of one task written before entries named it)."""
+    return attempt.get("task") or task_list(log_settings.get("task"))[0]
+
+
+def saved_per_task(log: dict, tasks: Sequence[str]) -> dict[str, int]:
+    """Saved episodes per task of a recording log (its attempts with an ``episode_index``)."""
+    saved = dict.fromkeys(tasks, 0)
+    for a in log["attempts"]:
+        if a.get("episode_index") is not None:
+            task = attempt_task(a, log["settings"])
+            saved[task] = saved.get(task, 0) + 1
+    return saved
+
+
+def _check_same_cameras(first, other, first_task: str, task: str) -> None:
+    """Raise a :class:`SettingError` when two tasks of one recording see through differently calibrated cameras
+    (one dataset has one ``meta/rnd_embodiment.json``)."""
+    a, b = first.to_dict()["cameras"], other.to_dict()["cameras"]
+
+    def close(x, y) -> bool:
+        if x is None or isinstance(x, (str, bool)):
+            return x == y
+        return np.shape(x) == np.shape(y) and bool(np.allclose(x, y, atol=1e-6))
+
+    same = a.keys() == b.keys() and all(a[k].keys() == b[k].keys() and all(close(a[k][f], b[k][f]) for f in a[k])
+                                        for k in a)  # fmt: skip
+    if not same:
+        raise SettingError(
+            f"--task: {first_task} and {task} have differently placed or calibrated cameras, and one dataset has one "
+            "camera calibration: record them into separate datasets"
+        )
+
+
 def _record(
     s: RecordSettings,
-    env,
-    expert,
+    make_env_expert,
     features: dict,
-    fps: int,
-    robot_type: str,
     log: dict,
     have: int,
     progress: bool,
 ) -> dict:
-    """The recording loop shared by the suites (``env`` / ``expert`` built from ``s``; ``log`` and ``have``:
-    the recording log and saved episodes of a resumed dataset)."""
+    """The recording loop shared by the suites: ``s.episodes`` episodes of every task of ``s.task`` (one or
+    comma-separated), task after task, into one dataset. ``make_env_expert(settings)`` builds one task's env and
+    expert (with the dataset's fps and robot type); ``log`` and ``have``: the recording log and saved episodes of
+    a resumed dataset. Each task's placements are the sequence a one-task recording with the same seed would use,
+    so a multi-task dataset holds the same demos as the one-task datasets of its tasks."""
+    from dataclasses import replace
+
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
     from tqdm import tqdm
 
+    tasks = task_list(s.task)
     root = Path(s.root)
     if root.exists() and have == 0:  # LeRobot cannot open a dataset without episodes
         logger.warning(f"{root} holds no saved episode: recording it again")
         shutil.rmtree(root)
+    env, expert, fps, robot_type = make_env_expert(replace(s, task=tasks[0]))
     if root.exists():
         dataset = LeRobotDataset(s.repo_id, root=root)
     else:
@@ -600,46 +584,65 @@ def _record(
         dataset.start_image_writer(num_processes=0, num_threads=s.image_writer_threads)
 
     have = dataset.meta.total_episodes
-    next_index = 1 + max((a["placement_index"] for a in log["attempts"]), default=-1)
-    seq = PlacementSequence(env, s.placements, s.seed, s.fps_pool)
+    saved = {tasks[0]: have} if len(tasks) == 1 else saved_per_task(log, tasks)
     max_attempts = s.max_attempts if s.max_attempts is not None else 3 * s.episodes + 10
     failures, attempts, frames_written, t0 = 0, 0, 0, time.time()
-    bar = tqdm(total=s.episodes, initial=min(have, s.episodes), desc=f"{s.task} demos", disable=not progress)
+    done = sum(min(saved[t], s.episodes) for t in tasks)
+    desc = f"{tasks[0]} demos" if len(tasks) == 1 else f"demos of {len(tasks)} tasks"
+    bar = tqdm(total=s.episodes * len(tasks), initial=done, desc=desc, disable=not progress)
+    env_task = tasks[0]
     try:
-        while have < s.episodes:
-            if attempts >= max_attempts:
-                raise RuntimeError(
-                    f"gave up after {attempts} attempts ({failures} failures): the expert fails too often"
-                )
-            placement = seq[next_index]
-            frames, ok, steps = run_expert_episode(env, expert, placement, s.max_steps, s.extra_steps)
-            attempts += 1
-            log["attempts"].append({
-                "placement_index": next_index,
-                "placement": [float(v) for v in placement],
-                "success": bool(ok),
-                "steps_to_success": steps,
-                "num_frames": len(frames) if ok else 0,
-                "episode_index": have if ok else None,
-            })  # fmt: skip
-            next_index += 1
-            # written before the episode is saved: a resume drops the entry if the episode was not
-            (root / RECORDING_FILE).write_text(json.dumps(log, indent=1))
-            if ok:
-                for obs, action in frames:
-                    frame = {f"observation.images.{c}": obs["pixels"][c] for c in s.cameras}
-                    frame["observation.state"] = obs["agent_pos"].astype(np.float32)
-                    frame["action"] = np.asarray(action, dtype=np.float32)
-                    frame["task"] = env.task_description
-                    dataset.add_frame(frame)
-                dataset.save_episode()
-                _close_episode_files(dataset)
-                frames_written += len(frames)
-                have += 1
-                bar.update(1)
-            else:
-                failures += 1
-                bar.set_postfix(failures=failures)
+        for task in tasks:
+            if saved[task] >= s.episodes:
+                continue
+            if task != env_task:
+                env.close()
+                env, expert, _, _ = make_env_expert(replace(s, task=task))
+                env_task = task
+                _check_same_cameras(embodiment, env.embodiment(), tasks[0], task)
+            mine = [a for a in log["attempts"] if attempt_task(a, log["settings"]) == task]
+            next_index = 1 + max((a["placement_index"] for a in mine), default=-1)
+            seq = PlacementSequence(env, s.placements, s.seed, s.fps_pool)
+            task_attempts = task_failures = 0
+            while saved[task] < s.episodes:
+                if task_attempts >= max_attempts:
+                    raise RuntimeError(
+                        f"{task}: gave up after {task_attempts} attempts ({task_failures} failures): the expert "
+                        "fails too often"
+                    )
+                placement = seq[next_index]
+                frames, ok, steps = run_expert_episode(env, expert, placement, s.max_steps, s.extra_steps)
+                attempts += 1
+                task_attempts += 1
+                log["attempts"].append({
+                    "task": task,
+                    "placement_index": next_index,
+                    "placement": [float(v) for v in placement],
+                    "success": bool(ok),
+                    "steps_to_success": steps,
+                    "num_frames": len(frames) if ok else 0,
+                    "episode_index": have if ok else None,
+                })  # fmt: skip
+                next_index += 1
+                # written before the episode is saved: a resume drops the entry if the episode was not
+                (root / RECORDING_FILE).write_text(json.dumps(log, indent=1))
+                if ok:
+                    for obs, action in frames:
+                        frame = {f"observation.images.{c}": obs["pixels"][c] for c in s.cameras}
+                        frame["observation.state"] = obs["agent_pos"].astype(np.float32)
+                        frame["action"] = np.asarray(action, dtype=np.float32)
+                        frame["task"] = env.task_description
+                        dataset.add_frame(frame)
+                    dataset.save_episode()
+                    close_episode_files(dataset)
+                    frames_written += len(frames)
+                    have += 1
+                    saved[task] += 1
+                    bar.update(1)
+                else:
+                    failures += 1
+                    task_failures += 1
+                    bar.set_postfix(failures=failures)
     finally:
         if dataset.image_writer is not None:
             dataset.stop_image_writer()
@@ -654,6 +657,7 @@ def _record(
         "root": str(root),
         "repo_id": s.repo_id,
         "episodes": have,
+        "episodes_per_task": dict(saved),
         "new_frames": frames_written,
         "attempts": attempts,
         "failures": failures,
@@ -682,14 +686,16 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings | None:
     d = RecordSettings()
     p.add_argument("--suite", choices=list(SUITES), default=d.suite, help="metaworld (default) or panda")
     p.add_argument(
-        "--task", default=None, help="task: MetaWorld V3 (default reach-v3) or Panda (default lift-cube)"
+        "--task", default=None,
+        help="task: MetaWorld V3 (default reach-v3) or Panda (default lift-cube); several, comma-separated (a,b,c), "
+             "record --episodes of each into one dataset, each frame with its task's description",
     )
     p.add_argument("--list-tasks", action="store_true", help="list the tasks of both suites and exit")
     p.add_argument(
         "--episodes",
         type=int,
         default=d.episodes,
-        help="successful episodes the dataset should hold in total",
+        help="successful episodes the dataset should hold in total (per task with several tasks)",
     )
     p.add_argument("--root", help="dataset folder (must not exist unless --resume); required")
     p.add_argument("--repo-id", help="dataset repo id, e.g. local/mw_reach; required")
