@@ -61,6 +61,8 @@ STATUS: dict[str, tuple[str, str]] = {
     "loss_parity_before.json": (CURRENT, "First 20 training losses of every shipped rnd config before the config "
                                 "was made lean (benchmarks/loss_parity.py)."),
     "loss_parity_after.json": (CURRENT, "The same after it: equal to loss_parity_before.json."),
+    "cpu_3000_door": (CURRENT, "door-close-v3, 10 demos, 3,000 steps, R&D-AI (1 denoising step) and ACT: the one-task "
+                      "runs of the fourth task of issue 35's multi-task comparison."),
     "panda_spatial": (CURRENT, "Issue 33, in progress: Panda push-block, spatial protocol (furthest-point demos from "
                       "the centre, 27-cell x/y/yaw grid), 3,000 steps; so far R&D-AI with 2 demos: 0/27."),
     # ---- archived: superseded or exploratory ----
