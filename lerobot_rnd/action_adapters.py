@@ -536,7 +536,9 @@ class JointPositionAdapter(ActionAdapter):
     R&D EE frame in ``ee_link``'s frame, ``T_world_base`` (default identity) the robot base pose.
 
     ``state``: current joint positions (..., S); the joints are ``state[..., state_joint_indices]``
-    or, by default, the first n entries.
+    or, by default, the first n entries. ``joint_scale`` (one factor, or one per joint): the dataset's joint
+    unit in the URDF's (radians / metres), e.g. pi/180 for degrees; ``forward_kinematics`` and
+    ``inverse_kinematics`` work in URDF units, ``to_rnd`` / ``from_rnd`` in the dataset's.
 
     * ``to_rnd``: ``T_ee_target = inv(FK(q_now)) @ FK(q_target)`` when ``state`` is given (the
       calibration ``T_world_base`` cancels); without ``state`` the current pose is
@@ -566,6 +568,7 @@ class JointPositionAdapter(ActionAdapter):
         ik_retry_std: float = 0.1,
         ik_lm_damping: float = 0.1,
         ik_enforce_joint_limits: bool = True,
+        joint_scale: float | Sequence[float] | None = None,
         **kwargs: Any,
     ):
         super().__init__(**kwargs)
@@ -596,6 +599,14 @@ class JointPositionAdapter(ActionAdapter):
         chain = self.chain(torch.device("cpu"), torch.float64)
         self.joint_names: list[str] = list(chain.get_joint_parameter_names(exclude_fixed=True))
         self.last_ik_info: dict[str, Tensor] = {}
+        self.joint_scale = None
+        if joint_scale is not None:
+            s = torch.as_tensor(joint_scale, dtype=torch.float64).flatten()
+            if s.numel() not in (1, self.n_joints) or not bool(torch.isfinite(s).all() and (s != 0).all()):
+                raise ValueError(
+                    f"joint_scale must be one finite nonzero factor or {self.n_joints}, got {joint_scale!r}"
+                )
+            self.joint_scale = [float(v) for v in s.expand(self.n_joints)]
 
     @property
     def n_joints(self) -> int:
@@ -647,8 +658,20 @@ class JointPositionAdapter(ActionAdapter):
             check_finite(q, "state")
         return q
 
+    def to_urdf_units(self, q: Tensor) -> Tensor:
+        """Dataset joint positions (..., n) -> URDF units (times ``joint_scale``)."""
+        if self.joint_scale is None:
+            return q
+        return q * torch.tensor(self.joint_scale, dtype=q.dtype, device=q.device)
+
+    def from_urdf_units(self, q: Tensor) -> Tensor:
+        """URDF joint positions (..., n) -> the dataset's units."""
+        if self.joint_scale is None:
+            return q
+        return q / torch.tensor(self.joint_scale, dtype=q.dtype, device=q.device)
+
     def forward_kinematics(self, q: Tensor) -> Tensor:
-        """Joint positions (..., n) -> T_base_ee (..., 4, 4) (including ``T_link_ee``)."""
+        """Joint positions (..., n) in URDF units -> T_base_ee (..., 4, 4) (including ``T_link_ee``)."""
         q = _as_float(q, "q")
         if q.shape[-1] != self.n_joints:
             raise ValueError(f"expected {self.n_joints} joint positions, got shape {tuple(q.shape)}")
@@ -713,23 +736,23 @@ class JointPositionAdapter(ActionAdapter):
 
     def _current_T_base_ee(self, T_world_ee: Tensor, state: Tensor | None, like: Tensor) -> Tensor:
         if state is not None:
-            return self.forward_kinematics(self._joints_from_state(state, like))
+            return self.forward_kinematics(self.to_urdf_units(self._joints_from_state(state, like)))
         if self.T_world_base is not None:
             return invert_transform(self.T_world_base.to(T_world_ee)) @ T_world_ee
         return T_world_ee
 
     def _to_rnd_motion(self, motion, T_world_ee, state):
-        T_base_target = self.forward_kinematics(motion)  # (..., T, 4, 4)
+        T_base_target = self.forward_kinematics(self.to_urdf_units(motion))  # (..., T, 4, 4)
         T_base_ee = self._current_T_base_ee(T_world_ee, state, motion)
         return invert_transform(T_base_ee).unsqueeze(-3) @ T_base_target
 
     def _from_rnd_motion(self, T_ee_target, T_world_ee, state):
-        q_now = self._joints_from_state(state, T_ee_target)
+        q_now = self.to_urdf_units(self._joints_from_state(state, T_ee_target))
         T_base_target = self.forward_kinematics(q_now).unsqueeze(-3) @ T_ee_target
         q, info = self.inverse_kinematics(T_base_target, q_now.unsqueeze(-2))
         lead = torch.broadcast_shapes(q.shape[:-1], T_world_ee.shape[:-2] + (1,))
         self.last_ik_info = info
-        return q.expand(*lead, self.n_joints)
+        return self.from_urdf_units(q.expand(*lead, self.n_joints))
 
     def _config(self):
         return {
@@ -747,6 +770,7 @@ class JointPositionAdapter(ActionAdapter):
             "ik_retry_std": self.ik_retry_std,
             "ik_lm_damping": self.ik_lm_damping,
             "ik_enforce_joint_limits": self.ik_enforce_joint_limits,
+            "joint_scale": self.joint_scale,
         }
 
 

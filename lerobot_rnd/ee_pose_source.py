@@ -7,6 +7,7 @@ Formats: a position plus a fixed orientation, any rotation format of ``geometry.
 
 from __future__ import annotations
 
+import math
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -33,7 +34,8 @@ class EEPoseSource:
       - "quat_wxyz" / "quat_xyzw" / "rotvec" / "rot6d" / "euler_xyz" (extrinsic xyz, scipy "xyz")
         / "matrix" (row-major 3x3): position from ``position_indices``, rotation from
         ``rotation_indices`` (4, 4, 3, 6, 3, 9 numbers);
-      - "joints": joint positions ``joint_indices`` -> forward kinematics of ``urdf_path`` to
+      - "joints": joint positions ``joint_indices`` (times ``joint_scale``, the factor from the state's unit
+        to the URDF's, e.g. pi/180 for degrees; default 1) -> forward kinematics of ``urdf_path`` to
         ``ee_link`` (pytorch_kinematics), then ``T_world_base @ T_base_link @ T_link_ee``.
     ``gripper_index``: index of the gripper state; ``gripper_open_value`` / ``gripper_closed_value``:
     its values when fully open / closed.
@@ -52,6 +54,7 @@ class EEPoseSource:
     gripper_open_value: float = 1.0
     gripper_closed_value: float = 0.0
     state_key: str = "observation.state"
+    joint_scale: list[float] | None = None
 
     def __post_init__(self) -> None:
         if self.format not in EE_POSE_FORMATS:
@@ -65,6 +68,17 @@ class EEPoseSource:
         if self.format == "joints":
             if not self.urdf_path or not self.ee_link or not self.joint_indices:
                 raise ValueError("ee_pose_source 'joints' needs urdf_path, ee_link and joint_indices")
+            if self.joint_scale is not None:
+                self.joint_scale = [float(v) for v in self.joint_scale]
+                if len(self.joint_scale) != len(self.joint_indices) or not all(
+                    math.isfinite(v) and v != 0 for v in self.joint_scale
+                ):
+                    raise ValueError(
+                        f"ee_pose_source.joint_scale must be {len(self.joint_indices)} finite nonzero factors "
+                        f"(one per joint index), got {self.joint_scale}"
+                    )
+        elif self.joint_scale is not None:
+            raise ValueError("ee_pose_source.joint_scale is only for format 'joints'")
         else:
             if self.position_indices is None or len(self.position_indices) != 3:
                 raise ValueError(
@@ -112,6 +126,7 @@ class EEPoseSource:
             "urdf_path",
             "ee_link",
             "joint_indices",
+            "joint_scale",
             "gripper_index",
         ):
             if getattr(self, k) is not None:
@@ -128,7 +143,7 @@ class EEPoseSource:
         known = {
             "format", "position_indices", "rotation_indices", "fixed_rotation", "urdf_path", "ee_link",
             "joint_indices", "T_world_base", "T_link_ee", "gripper_index", "gripper_open_value",
-            "gripper_closed_value", "state_key",
+            "gripper_closed_value", "state_key", "joint_scale",
         }  # fmt: skip
         unknown = set(d) - known
         if unknown:
@@ -183,6 +198,8 @@ class EEPoseSource:
                 self._chain = pk.build_serial_chain_from_urdf(Path(self.urdf_path).read_bytes(), self.ee_link)
         chain = self._chain.to(dtype=state.dtype, device=state.device)
         q = state[..., self.joint_indices]
+        if self.joint_scale is not None:
+            q = q * torch.as_tensor(self.joint_scale, dtype=q.dtype, device=q.device)
         lead = q.shape[:-1]
         T = chain.forward_kinematics(q.reshape(-1, q.shape[-1])).get_matrix().reshape(*lead, 4, 4)
         if self.T_world_base is not None:
