@@ -593,6 +593,12 @@ def multitask_section(one_step: dict | None) -> list[str]:
     losses = [f"{label} {loss:.3f}" for label, loss in losses if loss is not None]
     if verdict:
         lines += ["", "; ".join(verdict) + "."]
+    if rs is not None and rm is not None and rm < rs - 0.10:
+        lines += ["", "**Here R&D-AI loses, against itself**: one policy for four tasks succeeds far less often than one "
+                  "policy per task, most on the tasks whose one-task runs were best. Only one multi-task setting has "
+                  "been run: 3,000 steps, the one-task runs' budget, in which each task gets a quarter of the samples "
+                  "(7.5 passes over the four-task dataset against 26 over door-close-v3's alone). Next: the same "
+                  "runs with 12,000 steps (the one-task runs' samples per task), and ACT multi-task."]  # fmt: skip
     if losses:
         lines += ["", "Training loss at step 3,000 of the multi-task runs (each method's own loss; curves in "
                   f"[`{MULTITASK_FOLDER}/loss_curves.png`](../benchmarks/results/{MULTITASK_FOLDER}/loss_curves.png)): "
