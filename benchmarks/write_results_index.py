@@ -61,8 +61,8 @@ STATUS: dict[str, tuple[str, str]] = {
     "loss_parity_before.json": (CURRENT, "First 20 training losses of every shipped rnd config before the config "
                                 "was made lean (benchmarks/loss_parity.py)."),
     "loss_parity_after.json": (CURRENT, "The same after it: equal to loss_parity_before.json."),
-    "cpu_3000_door": (CURRENT, "door-close-v3, 10 demos, 3,000 steps, R&D-AI (1 denoising step) and ACT: the one-task "
-                      "runs of the fourth task of issue 35's multi-task comparison."),
+    "cpu_3000_door": (CURRENT, "door-close-v3, 10 demos, 3,000 steps: the one-task runs of the fourth task of issue 35's "
+                      "multi-task comparison; so far R&D-AI (1 denoising step): 49/50; ACT not run yet."),
     "cpu_3000_multitask": (CURRENT, "Issue 35, in progress: one R&D-AI policy (task-conditioned) trained on drawer-close, "
                            "button-press-topdown, reach and door-close together (10 demos of each, 3,000 steps), "
                            "evaluated on each task (50 episodes per task, seeds 1000-1049): 83/200, against 173/200 "
