@@ -18,12 +18,15 @@ def test_config_parses_as_a_train_config(path):
 
     cfg = draccus.parse(TrainPipelineConfig, str(path), args=[])
     assert cfg.policy is not None and cfg.policy.type in {"rnd", "act", "diffusion"}
-    # the folder names the suite: metaworld/ -> rnd_mw, panda/ -> rnd_panda (7-D actions, 8-D state)
-    want = {"metaworld": "rnd_mw", "panda": "rnd_panda"}[path.parent.name]
+    # the folder names the suite: metaworld/ -> rnd_mw, panda/ -> rnd_panda (7-D actions, 8-D state), so101/ ->
+    # rnd_so101 (LeRobot's 6 SO-101 joints as state and action)
+    want = {"metaworld": "rnd_mw", "panda": "rnd_panda", "so101": "rnd_so101"}[path.parent.name]
     assert cfg.env is not None and cfg.env.type == want
     if want == "rnd_panda":
         assert cfg.env.action_dim == 7 and cfg.env.state_dim() == 8
         assert cfg.env.features["action"].shape == (7,)
+    if want == "rnd_so101":
+        assert cfg.env.action_dim == 6 and cfg.env.state_dim() == 6 and cfg.env.fps == 30
     assert cfg.policy.push_to_hub is False
     if cfg.policy.type == "rnd":
         assert cfg.policy.n_obs_steps == 2 and cfg.policy.chunk_size == 8
@@ -62,17 +65,18 @@ def test_inference_benchmark_times_the_cpu_tier_that_training_builds():
     assert trained.patch_embed == "conv" and trained.dim_model != RnDConfig().dim_model  # not the paper defaults
 
 
-def test_panda_cpu_configs_mirror_the_metaworld_cpu_configs():
-    """policies_config/panda/*_cpu.json are the MetaWorld CPU configs (same model sizes and training settings) with
-    the Panda dataset and env: the benchmark compares the suites at one model size."""
+@pytest.mark.parametrize("suite", ["panda", "so101"])
+def test_suite_cpu_configs_mirror_the_metaworld_cpu_configs(suite):
+    """policies_config/<suite>/*_cpu.json are the MetaWorld CPU configs (same model sizes and training settings) with
+    the suite's dataset and env: the benchmark compares the suites at one model size."""
     import json
 
     root = Path(__file__).resolve().parents[1] / "policies_config"
-    names = sorted(p.name for p in (root / "panda").glob("*.json"))
+    names = sorted(p.name for p in (root / suite).glob("*.json"))
     assert names == ["act_cpu.json", "diffusion_cpu.json", "rnd_ai_cpu.json"]
     for name in names:
-        mw, panda = (json.loads((root / d / name).read_text()) for d in ("metaworld", "panda"))
+        mw, panda = (json.loads((root / d / name).read_text()) for d in ("metaworld", suite))
         assert panda["policy"] == mw["policy"], name
-        assert panda["env"]["type"] == "rnd_panda" and panda["dataset"]["root"].startswith("data/panda_")
+        assert panda["env"]["type"] == f"rnd_{suite}" and panda["dataset"]["root"].startswith(f"data/{suite}_")
         assert {k: v for k, v in panda.items() if k not in ("env", "dataset")} == \
             {k: v for k, v in mw.items() if k not in ("env", "dataset")}  # fmt: skip

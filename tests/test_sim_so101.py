@@ -139,3 +139,28 @@ def test_a_simulated_calibration_session_measures_the_cameras(tmp_path, capsys):
         rot_deg = math.degrees(Rotation.from_matrix(T[:3, :3].T @ G[:3, :3]).magnitude())
         assert pos_mm < 5.0 and rot_deg < 1.0, (key, pos_mm, rot_deg)
         np.testing.assert_allclose(got.K, cam.K, rtol=0.02, atol=0.5)
+
+
+def test_recorder_writes_what_lerobot_record_writes_for_the_so101(tmp_path):
+    """lerobot-rnd-record --suite so101: robot type, fps and feature names of LeRobot's so101_follower datasets
+    (lerobot-record), plus the embodiment, which validates against them; a task of another suite names the flag."""
+    import json
+
+    from lerobot_rnd.embodiment import Embodiment
+    from lerobot_rnd.sim.record import RecordSettings, SettingError, record
+
+    root = tmp_path / "so101_pick"
+    summary = record(RecordSettings(suite="so101", task="pick-cube", episodes=1, root=str(root), repo_id="local/p",
+                                    image_size=64), progress=False)  # fmt: skip
+    assert summary["episodes"] == 1
+    info = json.loads((root / "meta" / "info.json").read_text())
+    assert info["robot_type"] == "so101_follower" and info["fps"] == 30
+    names = [f"{j}.pos" for j in ("shoulder_pan", "shoulder_lift", "elbow_flex", "wrist_flex", "wrist_roll", "gripper")]
+    assert info["features"]["observation.state"]["names"] == names == info["features"]["action"]["names"]
+    assert set(info["features"]) >= {"observation.images.front", "observation.images.wrist"}
+    emb = Embodiment.load_json(root / "meta" / "rnd_embodiment.json")
+    from lerobot.datasets.lerobot_dataset import LeRobotDatasetMetadata
+
+    emb.validate_against(LeRobotDatasetMetadata("local/p", root=root).features)
+    with pytest.raises(SettingError, match="add --suite so101"):
+        record(RecordSettings(task="pick-cube", episodes=1, root=str(tmp_path / "x"), repo_id="local/x"))

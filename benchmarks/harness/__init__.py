@@ -49,6 +49,11 @@ records demos by furthest point sampling over the object's x, y and yaw starting
 (``--placements fps-centre``; a target at the centre of its range where valid, else seeded draws) and evaluates on a
 G x G x --grid-yaws grid over x, y and yaw (default 3 x 3 x 3 = 27 cell centres), one x-y heat map per yaw.
 
+SO-101 suite (--suite so101; smoke and cpu scales): records with ``lerobot-rnd-record --suite so101``, replaces each
+dataset's cameras by those ``lerobot-rnd-calibrate`` measures on a simulated calibration session (``--calibration
+measured``; ``exact`` keeps MuJoCo's), trains from policies_config/so101/*_cpu.json, evaluates with
+``--env.type=rnd_so101`` (150-step episodes).
+
 Time budget and resumption: with ``--max-minutes M`` the harness stops starting work that would not fit,
 stops training cleanly (right after a checkpoint when the next one would not fit, otherwise at the deadline,
 losing the steps since the last checkpoint) and exits with code 3; run the same command again with

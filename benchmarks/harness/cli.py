@@ -26,8 +26,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(description=OVERVIEW, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--scale", choices=sorted(SCALES), required=True)
     p.add_argument("--suite", choices=list(SUITES), default="metaworld",
-                   help="metaworld (--env.type=rnd_mw, policies_config/metaworld/) or panda (--env.type=rnd_panda, "
-                        "policies_config/panda/: smoke and cpu scales)")  # fmt: skip
+                   help="metaworld (--env.type=rnd_mw, policies_config/metaworld/), panda (--env.type=rnd_panda, "
+                        "policies_config/panda/) or so101 (--env.type=rnd_so101, policies_config/so101/); the last "
+                        "two: smoke and cpu scales")  # fmt: skip
+    p.add_argument("--calibration", choices=["measured", "exact"], default="measured",
+                   help="so101: the demos' cameras, measured by lerobot-rnd-calibrate on a simulated calibration "
+                        "session (default) or MuJoCo's exact ones")  # fmt: skip
     p.add_argument("--tasks", help="comma-separated tasks of the suite: MetaWorld V3 or Panda (scale default)")
     p.add_argument("--demos", help="comma-separated demo counts (scale default)")
     p.add_argument("--methods", default=",".join(METHODS), help=f"subset of {','.join(METHODS)}")
@@ -111,12 +115,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     a.grid_dims = _csv(a.grid_dims, int) if a.grid_dims else None
     if a.grid_dims is not None and len(a.grid_dims) not in (2, 3):
         p.error("--grid-dims takes two or three coordinates")
-    if a.suite == "panda":
-        from lerobot_rnd.sim.panda_scene import PANDA_TASKS
+    if a.suite != "metaworld":
+        from lerobot_rnd.sim.record import SUITE_NAMES, suite_tasks
 
-        bad = [t for t in a.tasks if t not in PANDA_TASKS]
+        bad = [t for t in a.tasks if t not in suite_tasks(a.suite)]
         if bad:
-            p.error(f"--suite panda: {bad} are not Panda tasks; tasks: {', '.join(PANDA_TASKS)}")
+            p.error(f"--suite {a.suite}: {bad} are not {SUITE_NAMES[a.suite]} tasks; tasks: "
+                    f"{', '.join(suite_tasks(a.suite))}")  # fmt: skip
+    if a.calibration == "exact" and a.suite != "so101":
+        p.error("--calibration applies to --suite so101 (the other suites' demos carry MuJoCo's cameras)")
     if a.multitask and len(a.tasks) < 2:
         p.error("--multitask trains one policy on several tasks: name two or more with --tasks")
     if a.multitask and a.protocol != "random":

@@ -104,6 +104,10 @@ class Benchmark:
             from lerobot_rnd.sim.panda_env import RnDPandaEnv
 
             return RnDPandaEnv(task, episode_length=self.a.episode_length)
+        if self.suite_name == "so101":
+            from lerobot_rnd.sim.so101_env import RnDSO101Env
+
+            return RnDSO101Env(task, episode_length=self.a.episode_length)
         from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnv
 
         return RnDMetaWorldEnv(task, episode_length=self.a.episode_length)
@@ -139,6 +143,8 @@ class Benchmark:
                     raise RuntimeError(f"recording {root} failed (rc {r.rc}):\n{r.tail}")
             from lerobot_rnd.sim.record import recorded_env_args, recorded_setting
 
+            if self.suite.get("calibration"):
+                self.calibrate(root)
             rec = _read_json(root / "meta" / "rnd_recording.json", {}) or {}
             env_args = recorded_env_args(rec.get("settings") or {})
             if env_args:
@@ -179,6 +185,40 @@ class Benchmark:
                     f"their policies would not see the same cameras; record {b['root']} again as an extension of "
                     f"{s['root']} (remove it and rerun: the benchmark copies the smaller set and resumes it)"
                 )
+
+    # ------------------------------------------------------------------ measured calibration (so101)
+    def calibrate(self, root) -> None:
+        """Puts the cameras R&D trains with into ``root``'s embodiment: measured by ``lerobot-rnd-calibrate`` on a
+        simulated calibration session (recorded once per data folder; ``--calibration measured``) or MuJoCo's exact
+        ones (``exact``, as recorded, kept as ``meta/rnd_embodiment_exact.json``)."""
+        a = self.a
+        meta = root / "meta"
+        exact, used = meta / "rnd_embodiment_exact.json", meta / "rnd_embodiment.json"
+        if not exact.exists() and not a.dry_run:
+            shutil.copyfile(used, exact)
+        if a.calibration == "exact":
+            if not a.dry_run:
+                shutil.copyfile(exact, used)
+            return
+        size = int((_read_json(meta / "info.json", {}) or {}).get("features", {}).get(
+            "observation.images.front", {}).get("shape", [128])[0])
+        session = self.data_dir / "so101_calibration_session_s0"
+        if not (session / "meta" / "info.json").exists():
+            if session.exists():
+                shutil.rmtree(session)
+            argv = [sys.executable, "-m", "lerobot_rnd.sim.so101_calibration", "--root", str(session)]
+            r = run_logged(argv, self.work / "logs" / "so101_calibration_session.log", env=self.env(), dry_run=a.dry_run)
+            if r.rc != 0:
+                raise RuntimeError(f"the calibration session failed (rc {r.rc}):\n{r.tail}")
+        argv = [sys.executable, "-m", "lerobot_rnd.calibration.cli",
+            "solve", "--dataset", str(session), "--board", str(session / "board.json"), "--robot", "so101",
+            "--wrist", "observation.images.wrist", "--out", str(meta / "rnd_embodiment_measured.json"),
+            "--image-size", f"{size}x{size}"]  # fmt: skip
+        r = run_logged(argv, self.work / "logs" / f"calibrate_{root.name}.log", env=self.env(), dry_run=a.dry_run)
+        if r.rc != 0:
+            raise RuntimeError(f"calibrating {root.name} failed (rc {r.rc}):\n{r.tail}")
+        if not a.dry_run:
+            shutil.copyfile(meta / "rnd_embodiment_measured.json", used)
 
     # ------------------------------------------------------------------ evaluation placements
     def eval_set(self, task: str) -> dict:

@@ -96,6 +96,20 @@ SUITES: dict[str, dict] = {
                         grid_yaws=3, config_files=_PANDA_CPU_FILES),
         },
     ),
+    "so101": dict(
+        env_type="rnd_so101", config_dir=REPO_ROOT / "policies_config" / "so101", dataset_prefix="so101",
+        record_args=["--suite", "so101"],
+        # the demos' embodiment: cameras measured by lerobot-rnd-calibrate on a simulated calibration session
+        # (--calibration measured, the default) or MuJoCo's exact ones (--calibration exact)
+        calibration=True,
+        fps_mode="fps-centre", grid_layout="cells", grid_others="seeded", grid_dims=(0, 1, 2),
+        scales={
+            # episode_length: 1.6 x the 94 steps the expert needs for pick-cube (30 for reach-target)
+            "smoke": dict(tasks="reach-target", episode_length=16, grid=3, grid_yaws=3, config_files=_PANDA_CPU_FILES),
+            "cpu": dict(tasks="reach-target,pick-cube", episode_length=150, grid=3, grid_yaws=3,
+                        config_files=_PANDA_CPU_FILES),
+        },
+    ),
 }  # fmt: skip
 
 

@@ -29,7 +29,7 @@ from lerobot_rnd.camera_calibration import CameraCalibration
 from lerobot_rnd.embodiment import EMBODIMENT_FILE_IN_DATASET, Embodiment, load_embodiment
 from lerobot_rnd.geometry import invert_transform
 
-OPEN_CLOSURE = 0.25  # frames whose gripper closure (0 open .. 1 closed) is below this count as open
+OPEN_CLOSURE = 0.25  # frames whose gripper closure (0 open .. 1 closed) is at most this count as open
 MIN_OUTLINE_PX = 20  # frames where the drawn outline has fewer pixels in the image are not scored
 CHECK_IMAGE_IN_DATASET = "meta/rnd_calibration_check.png"
 
@@ -195,8 +195,8 @@ def dataset_frames(root: Path, n_frames: int, emb: Embodiment | None = None) -> 
     if emb is not None and emb.ee_pose_source.gripper_index is not None:
         all_states = torch.stack([torch.as_tensor(s) for s in ds.hf_dataset["observation.state"]])
         closure = emb.ee_pose_source.gripper(all_states).numpy()
-        if (closure < OPEN_CLOSURE).any():
-            candidates = np.flatnonzero(closure < OPEN_CLOSURE)
+        # open: below OPEN_CLOSURE, or (a dataset that never opens fully) the more open half of its frames
+        candidates = np.flatnonzero(closure <= max(OPEN_CLOSURE, float(np.quantile(closure, 0.5))))
     pick = candidates[np.unique(np.linspace(0, len(candidates) - 1, min(n_frames, len(candidates))).round().astype(int))]
     states, images = [], {k: [] for k in ds.meta.camera_keys}
     for i in pick:
@@ -233,7 +233,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"error: embodiment {source}: {e} (run lerobot-rnd-calibrate, or pass --embodiment)", file=sys.stderr)
         return 2
     states, images, n_open = dataset_frames(a.dataset, a.frames, emb)
-    print(f"checking {len(states)} frames spread over {n_open} frames with the gripper open")
+    print(f"checking {len(states)} frames spread over the {n_open} frames with the gripper open (or most open)")
     missing = [k for k in images if k not in emb.cameras]
     if missing:
         print(f"error: the embodiment has no calibration for {missing} (it has {sorted(emb.cameras)})", file=sys.stderr)

