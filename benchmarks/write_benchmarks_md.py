@@ -598,7 +598,8 @@ def multitask_section(one_step: dict | None) -> list[str]:
                   "policy per task, most on the tasks whose one-task runs were best. Only one multi-task setting has "
                   "been run: 3,000 steps, the one-task runs' budget, in which each task gets a quarter of the samples "
                   "(7.5 passes over the four-task dataset against 26 over door-close-v3's alone). Next: the same "
-                  "runs with 12,000 steps (the one-task runs' samples per task), and ACT multi-task."]  # fmt: skip
+                  "runs with 12,000 steps (the one-task runs' samples per task)"
+                  + (", and ACT multi-task." if am is None else ".")]  # fmt: skip
     if losses:
         lines += ["", "Training loss at step 3,000 of the multi-task runs (each method's own loss; curves in "
                   f"[`{MULTITASK_FOLDER}/loss_curves.png`](../benchmarks/results/{MULTITASK_FOLDER}/loss_curves.png)): "

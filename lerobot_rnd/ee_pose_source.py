@@ -35,8 +35,9 @@ class EEPoseSource:
         / "matrix" (row-major 3x3): position from ``position_indices``, rotation from
         ``rotation_indices`` (4, 4, 3, 6, 3, 9 numbers);
       - "joints": joint positions ``joint_indices`` (times ``joint_scale``, the factor from the state's unit
-        to the URDF's, e.g. pi/180 for degrees; default 1) -> forward kinematics of ``urdf_path`` to
-        ``ee_link`` (pytorch_kinematics), then ``T_world_base @ T_base_link @ T_link_ee``.
+        to the URDF's, e.g. pi/180 for degrees; default 1) -> forward kinematics of the URDF to ``ee_link``
+        (pytorch_kinematics), then ``T_world_base @ T_base_link @ T_link_ee``. The URDF is ``urdf`` (its text,
+        carried inline: a checkpoint that holds it works on any machine) or ``urdf_path`` (a file).
     ``gripper_index``: index of the gripper state; ``gripper_open_value`` / ``gripper_closed_value``:
     its values when fully open / closed.
     """
@@ -46,6 +47,7 @@ class EEPoseSource:
     rotation_indices: list[int] | None = None
     fixed_rotation: Any | None = None
     urdf_path: str | None = None
+    urdf: str | None = None
     ee_link: str | None = None
     joint_indices: list[int] | None = None
     T_world_base: Any | None = None
@@ -66,8 +68,11 @@ class EEPoseSource:
         if self.joint_indices is not None:
             self.joint_indices = [int(i) for i in self.joint_indices]
         if self.format == "joints":
-            if not self.urdf_path or not self.ee_link or not self.joint_indices:
-                raise ValueError("ee_pose_source 'joints' needs urdf_path, ee_link and joint_indices")
+            if not (self.urdf_path or self.urdf) or not self.ee_link or not self.joint_indices:
+                raise ValueError("ee_pose_source 'joints' needs urdf (the URDF's text) or urdf_path, ee_link and "
+                                 "joint_indices")  # fmt: skip
+            if self.urdf_path and self.urdf:
+                raise ValueError("ee_pose_source 'joints': give the URDF once, as urdf (text) or urdf_path")
             if self.joint_scale is not None:
                 self.joint_scale = [float(v) for v in self.joint_scale]
                 if len(self.joint_scale) != len(self.joint_indices) or not all(
@@ -124,6 +129,7 @@ class EEPoseSource:
             "position_indices",
             "rotation_indices",
             "urdf_path",
+            "urdf",
             "ee_link",
             "joint_indices",
             "joint_scale",
@@ -141,7 +147,7 @@ class EEPoseSource:
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> EEPoseSource:
         known = {
-            "format", "position_indices", "rotation_indices", "fixed_rotation", "urdf_path", "ee_link",
+            "format", "position_indices", "rotation_indices", "fixed_rotation", "urdf_path", "urdf", "ee_link",
             "joint_indices", "T_world_base", "T_link_ee", "gripper_index", "gripper_open_value",
             "gripper_closed_value", "state_key", "joint_scale",
         }  # fmt: skip
@@ -195,7 +201,8 @@ class EEPoseSource:
         if self._chain is None:
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
-                self._chain = pk.build_serial_chain_from_urdf(Path(self.urdf_path).read_bytes(), self.ee_link)
+                text = self.urdf.encode() if self.urdf else Path(self.urdf_path).read_bytes()
+                self._chain = pk.build_serial_chain_from_urdf(text, self.ee_link)
         chain = self._chain.to(dtype=state.dtype, device=state.device)
         q = state[..., self.joint_indices]
         if self.joint_scale is not None:

@@ -165,9 +165,9 @@ def gripper_meshes(
 
 def so101_ee_pose_source(T_world_base: Any = None) -> EEPoseSource:
     """EE pose source of the LeRobot SO-101 state: FK of the five body joints (degrees) to the gripper frame,
-    gripper state at index 5 (100 open, 0 closed)."""
+    gripper state at index 5 (100 open, 0 closed). The URDF travels inline (no path to this machine's files)."""
     return EEPoseSource(
-        format="joints", urdf_path=str(URDF_PATH), ee_link=EE_LINK, joint_indices=list(range(ARM_JOINTS)),
+        format="joints", urdf=URDF_PATH.read_text(), ee_link=EE_LINK, joint_indices=list(range(ARM_JOINTS)),
         joint_scale=[DEG_TO_RAD] * ARM_JOINTS, T_world_base=T_world_base, gripper_index=ARM_JOINTS,
         gripper_open_value=LEROBOT_GRIPPER_OPEN, gripper_closed_value=LEROBOT_GRIPPER_CLOSED,
     )  # fmt: skip

@@ -50,7 +50,7 @@ def test_ee_pose_source_validation():
         EEPoseSource(format="quaternion", position_indices=[0, 1, 2])
     with pytest.raises(ValueError, match="4 rotation_indices"):
         EEPoseSource(format="quat_wxyz", position_indices=[0, 1, 2], rotation_indices=[3, 4, 5])
-    with pytest.raises(ValueError, match="urdf_path"):
+    with pytest.raises(ValueError, match="urdf_path"):  # "needs urdf (the URDF's text) or urdf_path, ..."
         EEPoseSource(format="joints")
     src = EEPoseSource(format="rotvec", position_indices=[0, 1, 2], rotation_indices=[3, 4, 5])
     with pytest.raises(ValueError, match="reads index 5"):

@@ -297,7 +297,11 @@ def test_embodiment_reads_the_lerobot_state_and_round_trips_through_json(tmp_pat
         },
     }
     emb.validate_against(features)
-    loaded = Embodiment.load_json(emb.save_json(tmp_path / "rnd_embodiment.json"))
+    path = emb.save_json(tmp_path / "rnd_embodiment.json")
+    # portable: the JSON (and so a checkpoint's config) names no file of this machine, the URDF travels inline
+    text = Path(path).read_text()
+    assert str(so101.ASSETS_DIR) not in text and '"urdf_path":"' not in text.replace(" ", "")
+    loaded = Embodiment.load_json(path)
     assert loaded.to_dict() == Embodiment.from_dict(emb.to_dict()).to_dict()
     assert loaded.symmetry_axis == 0 and loaded.camera_mesh["observation.images.wrist"] == "fingers"
     q_lerobot, _ = _random_lerobot_q(5, seed=5)
@@ -348,3 +352,16 @@ def test_a_bad_joint_scale_is_refused_naming_the_field(scale):
     with pytest.raises(ValueError, match="only for format 'joints'"):
         EEPoseSource(format="quat_wxyz", position_indices=[0, 1, 2], rotation_indices=[3, 4, 5, 6],
                      joint_scale=[1.0])  # fmt: skip
+
+
+def test_joints_pose_source_takes_the_urdf_inline_or_by_path_not_both(tmp_path):
+    urdf = so101.URDF_PATH.read_text()
+    common = dict(format="joints", ee_link=so101.EE_LINK, joint_indices=[0, 1, 2, 3, 4])
+    inline, by_path = EEPoseSource(urdf=urdf, **common), EEPoseSource(urdf_path=str(so101.URDF_PATH), **common)
+    q = torch.tensor([[0.3, -0.2, 0.5, 0.1, -0.7]], dtype=torch.float64)
+    torch.testing.assert_close(inline.ee_pose(q), by_path.ee_pose(q))
+    assert EEPoseSource.from_dict(inline.to_dict()).urdf == urdf
+    with pytest.raises(ValueError, match="give the URDF once"):
+        EEPoseSource(urdf=urdf, urdf_path=str(so101.URDF_PATH), **common)
+    with pytest.raises(ValueError, match="needs urdf"):
+        EEPoseSource(**common)
