@@ -83,6 +83,9 @@ GRIPPER_LINKS = ("gripper_link", "wrist_roll_follower_link", "moving_jaw_so101_v
 FINGERS_MIN_Z = -0.05
 #: LeRobot gripper value at which the meshes are posed (0.785 rad: the jaw tips about 67 mm apart).
 MESH_GRIPPER_POS = 50.0
+#: faces of each gripper mesh in :func:`so101_embodiment` (MetaWorld's size: the rasteriser's cost, which every
+#: training step and action pays, grows with the faces; the jaws keep their outline at this size)
+GRIPPER_MESH_FACES = 1500
 
 
 def _gripper_to_rad(g):
@@ -191,7 +194,7 @@ def so101_embodiment(
     camera_mesh: Mapping[str, str] | None = None,
     T_world_base: Any = None,
     mesh_gripper_pos: float = MESH_GRIPPER_POS,
-    max_faces: int | None = None,
+    max_faces: int | None = GRIPPER_MESH_FACES,
     gripper_threshold: float | None = None,
     name: str = "so101",
     notes: str = "",
