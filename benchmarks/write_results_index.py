@@ -66,7 +66,7 @@ STATUS: dict[str, tuple[str, str]] = {
     "cpu_3000_multitask": (CURRENT, "Issue 35, in progress: one R&D-AI policy (task-conditioned) trained on drawer-close, "
                            "button-press-topdown, reach and door-close together (10 demos of each, 3,000 steps), "
                            "evaluated on each task (50 episodes per task, seeds 1000-1049): 83/200, against 173/200 "
-                           "for one policy per task; ACT multi-task not run yet."),
+                           "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
     "panda_spatial": (CURRENT, "Issue 33, in progress: Panda push-block, spatial protocol (furthest-point demos from "
                       "the centre, 27-cell x/y/yaw grid), 3,000 steps; so far R&D-AI with 2 demos: 0/27."),
     # ---- archived: superseded or exploratory ----
