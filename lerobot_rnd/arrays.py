@@ -67,3 +67,17 @@ def tolist(a: np.ndarray, decimals: int | None = None) -> list:
 def mujoco_pose(xmat: Any, xpos: Any) -> np.ndarray:
     """World pose (4, 4) of a MuJoCo body / site / geom / camera from its ``xmat`` (9,) and ``xpos`` (3,)."""
     return make_pose(np.asarray(xmat, dtype=np.float64).reshape(3, 3), np.asarray(xpos, dtype=np.float64))
+
+
+def look_at(eye: Any, target: Any, up: Any = (0.0, 0.0, 1.0), roll: float = 0.0) -> np.ndarray:
+    """``T_world_cam`` (4, 4) of an OpenCV camera (x right, y down, z forward) at ``eye`` looking at ``target``,
+    image-up near ``up``, turned by ``roll`` radians about its optical axis."""
+    eye, target, up = (np.asarray(v, dtype=np.float64) for v in (eye, target, up))
+    z = target - eye
+    z /= np.linalg.norm(z)
+    x = np.cross(z, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    c, s = np.cos(roll), np.sin(roll)
+    x, y = c * x + s * y, -s * x + c * y
+    return make_pose(np.stack([x, y, z], axis=1), eye)

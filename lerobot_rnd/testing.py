@@ -13,6 +13,7 @@ import numpy as np
 import trimesh
 from scipy.spatial.transform import Rotation
 
+from lerobot_rnd.arrays import look_at  # noqa: F401  (re-exported: scripts import it from here)
 from lerobot_rnd.embodiment import (
     EMBODIMENT_FILE_IN_DATASET,
     CameraCalibration,
@@ -42,20 +43,6 @@ def toy_fingers() -> GripperMesh:
     right = trimesh.creation.box(extents=(0.015, 0.012, 0.05))
     right.apply_translation((0, -0.03, 0.0))
     return GripperMesh.from_trimesh(trimesh.util.concatenate([left, right]), color=(0.7, 0.7, 0.7))
-
-
-def look_at(eye, target, up=(0, 0, 1)) -> np.ndarray:
-    """T_world_cam of an OpenCV camera at `eye` looking at `target`."""
-    eye, target, up = (np.asarray(v, dtype=np.float64) for v in (eye, target, up))
-    z = target - eye
-    z /= np.linalg.norm(z)
-    x = np.cross(z, up)
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    T = np.eye(4)
-    T[:3, :3] = np.stack([x, y, z], axis=1)
-    T[:3, 3] = eye
-    return T
 
 
 def toy_embodiment(image_size=IMAGE_SIZE) -> Embodiment:

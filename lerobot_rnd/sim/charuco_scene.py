@@ -15,7 +15,7 @@ from collections.abc import Mapping
 import cv2
 import numpy as np
 
-from lerobot_rnd.arrays import invert_pose, make_pose
+from lerobot_rnd.arrays import invert_pose, look_at, make_pose  # noqa: F401  (look_at: for its users)
 from lerobot_rnd.calibration.charuco import ChArUcoBoard
 
 _MJ_FROM_CV = np.diag([1.0, -1.0, -1.0])  # MuJoCo cameras look along -z with y up; OpenCV's along +z, y down
@@ -99,18 +99,3 @@ class ChArUcoScene:
         for r in self._renderers.values():
             r.close()
         self._renderers.clear()
-
-
-def look_at(eye: np.ndarray, target: np.ndarray, up: tuple[float, float, float] = (0.0, 0.0, 1.0), roll: float = 0.0):
-    """``T_world_cam`` (4, 4, OpenCV frame) of a camera at ``eye`` looking at ``target``, image-up near ``up``,
-    turned by ``roll`` radians about its optical axis."""
-    z = np.asarray(target, float) - np.asarray(eye, float)
-    z /= np.linalg.norm(z)
-    x = np.cross(z, np.asarray(up, float))
-    if np.linalg.norm(x) < 1e-6:
-        x = np.cross(z, [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    c, s = math.cos(roll), math.sin(roll)
-    x, y = c * x + s * y, -s * x + c * y
-    return make_pose(np.stack([x, y, z], axis=1), np.asarray(eye, float))

@@ -13,20 +13,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
+from lerobot_rnd.arrays import look_at
 from lerobot_rnd.calibration.charuco import ChArUcoBoard
 from lerobot_rnd.sim.so101_experts import ik_position_first, min_jerk
 from lerobot_rnd.sim.so101_scene import (
     CALIBRATION_BOARD_POSE,
     WRIST_CAMERA_LOOKAT_EE,
     WRIST_CAMERA_POS_EE,
-    look_at_cv,
 )
 
 #: the board of a simulated session: 7x5 squares of 3 cm (about a sheet of A4)
@@ -41,15 +40,12 @@ def session_joint_targets(n_poses: int, seed: int = 0, board: ChArUcoBoard = SES
     rng = np.random.default_rng(seed)
     w, h = board.size_m
     centre = (CALIBRATION_BOARD_POSE @ np.array([w / 2, h / 2, 0.0, 1.0]))[:3]
-    T_ee_cam_nominal = look_at_cv(WRIST_CAMERA_POS_EE, WRIST_CAMERA_LOOKAT_EE, up=(1.0, 0.0, 0.0))
+    T_ee_cam_nominal = look_at(WRIST_CAMERA_POS_EE, WRIST_CAMERA_LOOKAT_EE, up=(1.0, 0.0, 0.0))
     out, q = [], np.array([0.0, -40.0, 20.0, 80.0, 0.0, 40.0])
     for _ in range(n_poses):
         eye = centre + [rng.uniform(-0.1, 0.06), rng.uniform(-0.1, 0.1), rng.uniform(0.16, 0.28)]
         look = centre + rng.normal(size=3) * np.array([0.02, 0.02, 0.0])
-        T_world_cam = look_at_cv(eye, look, up=(1.0, 0.0, 0.0))
-        roll = rng.uniform(-0.35, 0.35)
-        c, s = math.cos(roll), math.sin(roll)
-        T_world_cam[:3, :2] = T_world_cam[:3, :2] @ np.array([[c, -s], [s, c]])
+        T_world_cam = look_at(eye, look, up=(1.0, 0.0, 0.0), roll=rng.uniform(-0.35, 0.35))
         q, _ = ik_position_first(T_world_cam @ np.linalg.inv(T_ee_cam_nominal), q)
         out.append(q.copy())
     return np.array(out)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from lerobot_rnd.arrays import invert_pose, make_pose, mujoco_pose
+from lerobot_rnd.arrays import invert_pose, look_at, make_pose, mujoco_pose
 from lerobot_rnd.sim.mujoco_env import default_headless_gl
 
 SO101_TASKS = ("reach-target", "pick-cube")
@@ -66,15 +66,6 @@ def check_task(task: str) -> str:
     return task
 
 
-def look_at_cv(eye, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
-    """``T_a_cam`` (4, 4, OpenCV camera frame) of a camera at ``eye`` looking at ``target`` (frame a)."""
-    eye, target = np.asarray(eye, float), np.asarray(target, float)
-    z = (target - eye) / np.linalg.norm(target - eye)
-    x = np.cross(z, np.asarray(up, float))
-    x /= np.linalg.norm(x)
-    return make_pose(np.stack([x, np.cross(z, x), z], axis=1), eye)
-
-
 def _mj_quat(R_cv: np.ndarray) -> list[float]:
     """MuJoCo camera quaternion (wxyz) of an OpenCV camera rotation (MuJoCo cameras look along -z, y up)."""
     from scipy.spatial.transform import Rotation
@@ -103,7 +94,8 @@ def T_gripper_body_ee() -> np.ndarray:
 
 def _decimated_meshes() -> dict[str, bytes]:
     """The arm's STL meshes by the path the MJCF names them (``assets/<file>``), each decimated to at most
-    :data:`MESH_FACES` faces: 323k faces in all made software OpenGL spend 65 ms per pair of 96x128 images."""
+    :data:`MESH_FACES` faces (the shipped meshes have 323k faces in all, which dominate software OpenGL's
+    rendering time)."""
     if not _ASSETS:
         import io
 
@@ -159,9 +151,9 @@ def build_model(offscreen_size: tuple[int, int] = (480, 640), board=None, T_worl
     wb = spec.worldbody
     wb.add_geom(name="table", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[1.0, 1.0, 0.01], material="table")
     wb.add_light(pos=[0.2, 0.0, 1.2], dir=[0.0, 0.0, -1.0], diffuse=[0.5, 0.5, 0.5], castshadow=False)
-    T_front = look_at_cv(FRONT_CAMERA_POS, FRONT_CAMERA_LOOKAT)
+    T_front = look_at(FRONT_CAMERA_POS, FRONT_CAMERA_LOOKAT)
     wb.add_camera(name="front", pos=T_front[:3, 3], quat=_mj_quat(T_front[:3, :3]), fovy=FRONT_CAMERA_FOVY)
-    T_body_cam = T_gripper_body_ee() @ look_at_cv(WRIST_CAMERA_POS_EE, WRIST_CAMERA_LOOKAT_EE, up=(1.0, 0.0, 0.0))
+    T_body_cam = T_gripper_body_ee() @ look_at(WRIST_CAMERA_POS_EE, WRIST_CAMERA_LOOKAT_EE, up=(1.0, 0.0, 0.0))
     spec.body(GRIPPER_BODY).add_camera(name="wrist", pos=T_body_cam[:3, 3], quat=_mj_quat(T_body_cam[:3, :3]),
                                        fovy=WRIST_CAMERA_FOVY)  # fmt: skip
     cube = wb.add_body(name="cube", pos=[0.2, 0.0, CUBE_HALF])
