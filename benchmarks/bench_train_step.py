@@ -23,6 +23,12 @@ hits them alike; the table reports medians and each method's total relative to t
         --out benchmarks/results/train_step_cpu.json
 
 The dataset: `lerobot-rnd-record --task reach-v3 --episodes 10 --root data/mw_reach-v3_10 --seed 0`.
+
+Other suites: a method `SUITE/NAME` is policies_config/SUITE/NAME.json (a bare NAME is metaworld's), and each suite
+gets its own dataset with `--dataset-root SUITE=PATH` (repeatable), e.g. R&D and ACT on the SO-101 next to MetaWorld:
+
+    python benchmarks/bench_train_step.py --methods rnd_ai_cpu,act_cpu,so101/rnd_ai_cpu,so101/act_cpu \
+        --dataset-root metaworld=data/mw_reach-v3_10 --dataset-root so101=data/so101_pick-cube_10
 """
 
 
@@ -50,16 +56,32 @@ PHASES = ("data", "pre", "render", "forward", "backward", "optim")
 DEFAULT_METHODS = "rnd_ai_cpu_legacy,rnd_ai_cpu,act_cpu,diffusion_cpu"
 
 
+def split_method(name: str) -> tuple[str, str]:
+    """'so101/act_cpu' -> ('so101', 'act_cpu'); a bare name is MetaWorld's."""
+    suite, _, config = name.rpartition("/")
+    return suite or "metaworld", config
+
+
+def dataset_roots(values: list[str] | None) -> dict[str, str]:
+    """`--dataset-root` values -> {suite: path}; a value without 'SUITE=' is the dataset of every suite ('*')."""
+    roots = {}
+    for v in values or ["data/mw_reach-v3_10"]:
+        suite, sep, path = v.partition("=")
+        roots.update({suite: path} if sep else {"*": v})
+    return roots
+
+
 def load_train_config(name: str, dataset_root: str, batch_size: int):
-    """A TrainPipelineConfig from policies_config/metaworld/<name>.json, on CPU, for `dataset_root`."""
+    """A TrainPipelineConfig from policies_config/<suite>/<name>.json (`name` = [suite/]config), on CPU."""
     from lerobot.configs import parser
     from lerobot.configs.train import TrainPipelineConfig
 
     import lerobot_policy_rnd  # noqa: F401  (registers --policy.type=rnd)
 
-    path = REPO_ROOT / "policies_config" / "metaworld" / f"{name}.json"
+    suite, config = split_method(name)
+    path = REPO_ROOT / "policies_config" / suite / f"{config}.json"
     if not path.exists():
-        raise FileNotFoundError(f"{path} does not exist: --methods takes names of policies_config/metaworld/*.json")
+        raise FileNotFoundError(f"{path} does not exist: --methods takes [SUITE/]NAME of policies_config/SUITE/NAME.json")
     root = Path(dataset_root).resolve()
     args = [
         f"--config_path={path}",
@@ -99,6 +121,7 @@ class Method:
 
         torch.manual_seed(seed)
         self.name = name
+        self.dataset_root = dataset_root
         cfg = load_train_config(name, dataset_root, batch_size)
         self.cfg = cfg
         t0 = time.perf_counter()
@@ -198,6 +221,7 @@ class Method:
         pol = self.cfg.policy
         return {
             "method": self.name,
+            "dataset_root": self.dataset_root,
             "policy_type": pol.type,
             "parameters": self.n_params,
             "median_s": med,
@@ -218,8 +242,10 @@ class Method:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--dataset-root", default="data/mw_reach-v3_10")
-    p.add_argument("--methods", default=DEFAULT_METHODS, help="names of policies_config/metaworld/*.json")
+    p.add_argument("--dataset-root", action="append",
+                   help="dataset of every method, or SUITE=PATH per suite (repeatable); default data/mw_reach-v3_10")
+    p.add_argument("--methods", default=DEFAULT_METHODS,
+                   help="[SUITE/]NAME of policies_config/SUITE/NAME.json (SUITE defaults to metaworld)")
     p.add_argument("--reference", default=None, help="method the ratios are relative to (default: the first)")
     p.add_argument("--batch-size", type=int, default=8)
     p.add_argument("--warmup", type=int, default=2)
@@ -231,10 +257,15 @@ def main(argv: list[str] | None = None) -> int:
     if a.threads:
         torch.set_num_threads(a.threads)
     names = [m for m in a.methods.split(",") if m]
+    roots = dataset_roots(a.dataset_root)
     methods = []
     for name in names:
-        print(f"building {name} ...", flush=True)
-        methods.append(Method(name, a.dataset_root, a.batch_size, a.seed))
+        suite = split_method(name)[0]
+        root = roots.get(suite, roots.get("*"))
+        if root is None:
+            p.error(f"no dataset for suite {suite!r} (method {name}): add --dataset-root {suite}=PATH")
+        print(f"building {name} on {root} ...", flush=True)
+        methods.append(Method(name, root, a.batch_size, a.seed))
     for i in range(a.warmup + a.steps):
         for m in methods:
             m.step(record=i >= a.warmup)
@@ -263,7 +294,7 @@ def main(argv: list[str] | None = None) -> int:
             "warmup": a.warmup,
             "steps": a.steps,
             "threads": torch.get_num_threads(),
-            "dataset_root": a.dataset_root,
+            "dataset_root": roots["*"] if list(roots) == ["*"] else roots,
             "reference": ref_name,
             "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
                         "torch": torch.__version__, "cpu_capability": torch.backends.cpu.get_cpu_capability(),

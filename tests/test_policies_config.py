@@ -80,3 +80,26 @@ def test_suite_cpu_configs_mirror_the_metaworld_cpu_configs(suite):
         assert panda["env"]["type"] == f"rnd_{suite}" and panda["dataset"]["root"].startswith(f"data/{suite}_")
         assert {k: v for k, v in panda.items() if k not in ("env", "dataset")} == \
             {k: v for k, v in mw.items() if k not in ("env", "dataset")}  # fmt: skip
+
+
+def test_train_step_benchmark_takes_each_suites_config_and_dataset(tmp_path):
+    """bench_train_step's `so101/act_cpu` is policies_config/so101/act_cpu.json on the so101 dataset, a bare name
+    MetaWorld's on its own (issue 34's cost question compares the suites in one run)."""
+    import sys
+
+    repo = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(repo / "benchmarks"))
+    try:
+        import bench_train_step as bench
+    finally:
+        sys.path.remove(str(repo / "benchmarks"))
+    roots = bench.dataset_roots([f"metaworld={tmp_path / 'mw'}", f"so101={tmp_path / 'arm'}"])
+    assert roots == {"metaworld": str(tmp_path / "mw"), "so101": str(tmp_path / "arm")}
+    assert bench.dataset_roots(["data/x"]) == {"*": "data/x"}
+    so101 = bench.load_train_config("so101/act_cpu", roots["so101"], 4)
+    assert so101.env.type == "rnd_so101" and so101.policy.type == "act" and so101.batch_size == 4
+    assert Path(so101.dataset.root) == tmp_path / "arm" and so101.dataset.repo_id == "local/arm"
+    mw = bench.load_train_config("act_cpu", roots["metaworld"], 8)
+    assert mw.env.type != "rnd_so101" and Path(mw.dataset.root) == tmp_path / "mw"
+    with pytest.raises(FileNotFoundError, match="policies_config/SUITE/NAME"):
+        bench.load_train_config("so101/no_such_config", roots["so101"], 8)
