@@ -23,7 +23,6 @@ is typed by hand.
 """
 
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -58,14 +57,11 @@ def _load(path: Path):
     return json.loads(path.read_text()) if path.exists() else None
 
 
-def wilson(successes: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """Wilson score 95% interval of a success rate."""
-    if n == 0:
-        return 0.0, 1.0
-    p = successes / n
-    centre = (p + z * z / (2 * n)) / (1 + z * z / n)
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / (1 + z * z / n)
-    return max(0.0, centre - half), min(1.0, centre + half)
+def wilson(successes: int, n: int) -> tuple[float, float]:
+    """Wilson score 95% interval of a success rate (the harness's); (0, 1) when nothing was evaluated."""
+    from benchmarks.harness.reports import wilson_interval
+
+    return wilson_interval(successes, n) if n > 0 else (0.0, 1.0)
 
 
 def cell(successes: int, n: int, bold: bool = False) -> str:

@@ -164,3 +164,29 @@ def test_recorder_writes_what_lerobot_record_writes_for_the_so101(tmp_path):
     emb.validate_against(LeRobotDatasetMetadata("local/p", root=root).features)
     with pytest.raises(SettingError, match="add --suite so101"):
         record(RecordSettings(task="pick-cube", episodes=1, root=str(tmp_path / "x"), repo_id="local/x"))
+
+
+def test_env_benchmark_reports_the_experts_successes_and_failures(tmp_path):
+    """benchmarks/bench_so101_env.py: the expert's episodes count as successes when the env says so, and as failures
+    (with their seeds) when the episode is too short for the expert (reach-target needs about 32 steps)."""
+    import json
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(repo / "benchmarks"))
+    try:
+        import bench_so101_env
+    finally:
+        sys.path.remove(str(repo / "benchmarks"))
+    for length, expect in ((150, 2), (5, 0)):
+        out = tmp_path / f"speed_{length}.json"
+        assert bench_so101_env.main(["--tasks", "reach-target", "--episodes", "2", "--seed", "3", "--image-size", "48",
+                                     "--episode-length", str(length), "--out", str(out)]) == 0
+        (row,) = json.loads(out.read_text())["results"]
+        assert row["successes"] == expect and row["episodes"] == 2
+        assert row["failed_seeds"] == ([] if expect else [3, 4])
+        assert (row["steps_max"] <= 40) if expect else (row["steps_max"] == 5)
+        assert row["ms_per_control_step"]["render"] > 0
+    with pytest.raises(SystemExit):  # would reach the evaluation seeds
+        bench_so101_env.main(["--seed", "990", "--episodes", "20"])
