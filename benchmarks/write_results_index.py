@@ -60,6 +60,8 @@ STATUS: dict[str, tuple[str, str]] = {
     "render_cpu.json": (CURRENT, "Rasteriser throughput on CPU (benchmarks/bench_render.py); the only measurement "
                         "of it."),
     "panda_env_speed.json": (CURRENT, "Speed of the Panda suite's environments and scripted experts (no policy)."),
+    "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
+                            "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "
                              "its speed per control step (no policy)."),
     "loss_parity_before.json": (CURRENT, "First 20 training losses of every shipped rnd config before the config "

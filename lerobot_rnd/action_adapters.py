@@ -548,6 +548,10 @@ class JointPositionAdapter(ActionAdapter):
       ``ik_num_retries - 1`` Gaussian perturbations of ``ik_retry_std``); among converged retries
       the one closest to ``q_now`` wins, else the one with the smallest error. Per-step errors are
       in ``self.last_ik_info`` (``converged``, ``err_pos`` [m], ``err_rot`` [rad]).
+
+    ``ik_orientation_weight`` (metres per radian in the least-squares objective, default 1): below 1 the IK
+    keeps the position and gives up the rotation an arm with fewer than 6 joints cannot reach (the SO-101's
+    five); at 1 a rotation error of 1 rad weighs as much as a position error of 1 m.
     """
 
     name = "joint_positions"
@@ -568,6 +572,7 @@ class JointPositionAdapter(ActionAdapter):
         ik_retry_std: float = 0.1,
         ik_lm_damping: float = 0.1,
         ik_enforce_joint_limits: bool = True,
+        ik_orientation_weight: float = 1.0,
         joint_scale: float | Sequence[float] | None = None,
         **kwargs: Any,
     ):
@@ -595,6 +600,9 @@ class JointPositionAdapter(ActionAdapter):
         self.ik_retry_std = float(ik_retry_std)
         self.ik_lm_damping = float(ik_lm_damping)
         self.ik_enforce_joint_limits = bool(ik_enforce_joint_limits)
+        self.ik_orientation_weight = float(ik_orientation_weight)
+        if not (math.isfinite(self.ik_orientation_weight) and self.ik_orientation_weight > 0):
+            raise ValueError(f"ik_orientation_weight must be a finite number > 0, got {ik_orientation_weight!r}")
         self._chains: dict[tuple[str, torch.dtype], Any] = {}
         chain = self.chain(torch.device("cpu"), torch.float64)
         self.joint_names: list[str] = list(chain.get_joint_parameter_names(exclude_fixed=True))
@@ -717,12 +725,13 @@ class JointPositionAdapter(ActionAdapter):
             early_stopping_any_converged=True,
             early_stopping_no_improvement=None,
             enforce_joint_limits=self.ik_enforce_joint_limits,
+            **self._ik_weights(),
         )
         ik.initial_config = seeds.reshape(M * R, n)  # solve() accepts (M*R, n) problem-major seeds
         sol = ik.solve(pk.Transform3d(matrix=T_flat, dtype=T_flat.dtype, device=T_flat.device))
         q_all = sol.solutions.reshape(M, R, n)
         dist = (q_all - seed.unsqueeze(1)).norm(dim=-1)
-        err = sol.err_pos / self.ik_pos_tolerance + sol.err_rot / self.ik_rot_tolerance
+        err = sol.err_pos / self.ik_pos_tolerance + self.ik_orientation_weight * sol.err_rot / self.ik_rot_tolerance
         cost = torch.where(sol.converged, dist, 1e6 + err)
         best = cost.argmin(dim=1)
         ar = torch.arange(M, device=best.device)
@@ -733,6 +742,19 @@ class JointPositionAdapter(ActionAdapter):
             "err_rot": sol.err_rot[ar, best].reshape(lead),
         }
         return q, info
+
+    def _ik_weights(self) -> dict[str, float]:
+        """pytorch_kinematics' objective weights (its ``orientation_weight`` needs pytorch-kinematics >= 0.10)."""
+        if self.ik_orientation_weight == 1.0:
+            return {}
+        import inspect
+
+        import pytorch_kinematics as pk
+
+        if "orientation_weight" not in inspect.signature(pk.InverseKinematics.__init__).parameters:
+            raise RuntimeError("ik_orientation_weight needs pytorch-kinematics >= 0.10: "
+                               "pip install 'pytorch-kinematics>=0.10'")  # fmt: skip
+        return {"orientation_weight": self.ik_orientation_weight}
 
     def _current_T_base_ee(self, T_world_ee: Tensor, state: Tensor | None, like: Tensor) -> Tensor:
         if state is not None:
@@ -770,6 +792,7 @@ class JointPositionAdapter(ActionAdapter):
             "ik_retry_std": self.ik_retry_std,
             "ik_lm_damping": self.ik_lm_damping,
             "ik_enforce_joint_limits": self.ik_enforce_joint_limits,
+            "ik_orientation_weight": self.ik_orientation_weight,
             "joint_scale": self.joint_scale,
         }
 

@@ -365,3 +365,34 @@ def test_joints_pose_source_takes_the_urdf_inline_or_by_path_not_both(tmp_path):
         EEPoseSource(urdf=urdf, urdf_path=str(so101.URDF_PATH), **common)
     with pytest.raises(ValueError, match="needs urdf"):
         EEPoseSource(**common)
+
+
+def test_ik_orientation_weight_keeps_the_position_of_a_pose_turned_out_of_reach():
+    """A reachable gripper pose turned by 5 degrees about a random axis (as a prediction error would turn it) keeps
+    a reachable position: with ik_orientation_weight 0.1 the IK reaches that position within 2 mm (median) and gives
+    up part of the rotation; with the default weight 1 it moves the gripper by several mm to win back rotation. Checked by
+    forward kinematics of the answer against the target; the weight round-trips through the adapter's dict."""
+    from scipy.spatial.transform import Rotation
+
+    from lerobot_rnd.action_adapters import ActionAdapter
+
+    q_lerobot, _ = _random_lerobot_q(24, seed=11)
+    q = so101.lerobot_to_urdf(torch.tensor(q_lerobot, dtype=torch.float64).clamp(-70.0, 70.0))[:, :5]
+    rng = np.random.default_rng(0)
+    axes = rng.normal(size=(24, 3))
+    turn = Rotation.from_rotvec(axes / np.linalg.norm(axes, axis=1, keepdims=True) * math.radians(5)).as_matrix()
+    errors = {}
+    for weight in (1.0, 0.1):
+        spec = so101.so101_action_adapter(ik_orientation_weight=weight)
+        adapter = ActionAdapter.from_dict(spec)
+        assert adapter.ik_orientation_weight == weight == spec["ik_orientation_weight"]
+        target = adapter.forward_kinematics(q)
+        target[:, :3, :3] = target[:, :3, :3] @ torch.as_tensor(turn)
+        q_ik, _ = adapter.inverse_kinematics(target, q)
+        reached = adapter.forward_kinematics(q_ik)
+        errors[weight] = 1e3 * (reached[:, :3, 3] - target[:, :3, 3]).norm(dim=-1)  # mm
+    # over random arm poses (demo poses do better: benchmarks/results/so101_ik_study.json)
+    assert float(errors[0.1].median()) < 2.0, errors[0.1]
+    assert float(errors[1.0].median()) > 4 * float(errors[0.1].median()), errors
+    with pytest.raises(ValueError, match="ik_orientation_weight"):
+        ActionAdapter.from_dict(so101.so101_action_adapter(ik_orientation_weight=0.0))
