@@ -702,13 +702,17 @@ class JointPositionAdapter(ActionAdapter):
         if self.T_link_ee is not None:
             T_link = T_link @ invert_transform(self.T_link_ee.to(T_link))
         n, R = self.n_joints, self.ik_num_retries
-        T_flat = T_link.expand(*lead, 4, 4).reshape(-1, 4, 4)
-        seed = q_seed.expand(*lead, n).reshape(-1, n)
+        out_dtype = torch.promote_types(T_base_ee.dtype, q_seed.dtype)
+        # Solved in float64: on an arm with fewer than 6 joints J J^T is singular and pytorch-kinematics' damping
+        # vanishes with the error, so float32 fails ("the input matrix is singular") near a reached target.
+        work = torch.float32 if T_base_ee.device.type == "mps" else torch.float64
+        T_flat = T_link.expand(*lead, 4, 4).reshape(-1, 4, 4).to(work)
+        seed = q_seed.expand(*lead, n).reshape(-1, n).to(work)
         M = T_flat.shape[0]
         if M == 0:
             empty = torch.zeros(*lead, dtype=torch.bool, device=T_base_ee.device)
             info = {"converged": empty, "err_pos": empty.float(), "err_rot": empty.float()}
-            return q_seed.new_zeros(*lead, n), info
+            return q_seed.new_zeros(*lead, n, dtype=out_dtype), info
         seeds = seed.unsqueeze(1).repeat(1, R, 1)  # (M, R, n)
         if R > 1:
             gen = torch.Generator(device=seed.device).manual_seed(0)
@@ -735,7 +739,7 @@ class JointPositionAdapter(ActionAdapter):
         cost = torch.where(sol.converged, dist, 1e6 + err)
         best = cost.argmin(dim=1)
         ar = torch.arange(M, device=best.device)
-        q = q_all[ar, best].reshape(*lead, n)
+        q = q_all[ar, best].reshape(*lead, n).to(out_dtype)
         info = {
             "converged": sol.converged[ar, best].reshape(lead),
             "err_pos": sol.err_pos[ar, best].reshape(lead),

@@ -396,3 +396,20 @@ def test_ik_orientation_weight_keeps_the_position_of_a_pose_turned_out_of_reach(
     assert float(errors[1.0].median()) > 4 * float(errors[0.1].median()), errors
     with pytest.raises(ValueError, match="ik_orientation_weight"):
         ActionAdapter.from_dict(so101.so101_action_adapter(ik_orientation_weight=0.0))
+
+
+def test_ik_in_float32_survives_a_target_the_arm_already_reaches():
+    """The policy runs in float32. On a 5-joint arm J J^T is singular; pytorch-kinematics' damping vanishes with the
+    error, so a float32 solve of a target at (or next to) the current pose once failed with 'the input matrix is
+    singular' in lerobot-eval. The adapter must return the current joints for the current pose, in float32."""
+    from lerobot_rnd.action_adapters import ActionAdapter
+
+    adapter = ActionAdapter.from_dict(so101.so101_action_adapter())
+    q_lerobot, _ = _random_lerobot_q(64, seed=5)
+    state = torch.tensor(q_lerobot, dtype=torch.float32).clamp(-80.0, 80.0)
+    T_world_ee = so101.forward_kinematics(state.double()).float()
+    stay = torch.eye(4).expand(64, 8, 4, 4).clone()  # chunk of 8: stay where you are
+    stay[:, 4:, 2, 3] = 1e-6  # and a move far below the tolerances
+    action = adapter.from_rnd(stay, -torch.ones(64, 8), T_world_ee, state=state)
+    assert action.dtype == torch.float32
+    torch.testing.assert_close(action[..., :5], state[:, None, :5].expand(64, 8, 5), atol=0.02, rtol=0)
