@@ -98,7 +98,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append({"ik_orientation_weight": w, "successes": s, "episodes": n, "wilson95": [lo, hi],
                      "per_episode": successes})  # fmt: skip
         print(f"ik_orientation_weight {w:g}: {s}/{n} ({lo:.0%}-{hi:.0%})", flush=True)
-    out = {"benchmark": "ik_weight", "checkpoint": str(checkpoint), "env_type": a.env_type, "task": a.task,
+    shown = checkpoint.relative_to(_REPO) if checkpoint.is_relative_to(_REPO) else checkpoint
+    out = {"benchmark": "ik_weight", "checkpoint": str(shown), "env_type": a.env_type, "task": a.task,
            "seeds": [a.seed, a.seed + a.episodes - 1], "episode_length": a.episode_length,
            "command": "python " + " ".join([sys.argv[0], *(argv if argv is not None else sys.argv[1:])]),
            "results": rows}  # fmt: skip

@@ -60,6 +60,9 @@ STATUS: dict[str, tuple[str, str]] = {
     "render_cpu.json": (CURRENT, "Rasteriser throughput on CPU (benchmarks/bench_render.py); the only measurement "
                         "of it."),
     "panda_env_speed.json": (CURRENT, "Speed of the Panda suite's environments and scripted experts (no policy)."),
+    "so101_random": (CURRENT, "Simulated SO-101 (issue 34): reach-target and pick-cube, 10 random demos, cameras "
+                     "measured by lerobot-rnd-calibrate, 3,000 steps, 50 test episodes from seed 1000; in progress "
+                     "(results.md says which runs are done)."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "
@@ -76,6 +79,11 @@ STATUS: dict[str, tuple[str, str]] = {
     "panda_spatial": (CURRENT, "Issue 33, in progress: Panda push-block, spatial protocol (furthest-point demos from "
                       "the centre, 27-cell x/y/yaw grid), 3,000 steps; so far R&D-AI with 2 demos: 0/27."),
     # ---- archived: superseded or exploratory ----
+    "so101_ik_weight_gripper50": (ARCHIVED, "First SO-101 R&D-AI checkpoints (reach-target, pick-cube; 10 demos, "
+                                  "3,000 steps) per IK orientation weight 1 / 0.1 on validation seeds 100-129: 2/30 "
+                                  "and 2/30, 0/30 and 0/30. Superseded: they read the demos' gripper with a fixed "
+                                  "threshold of 50, so the expert's 40-60 approach counted as closed; the policy "
+                                  "shut the jaws at the start and lifted. The gripper range now comes from the demos."),
     "cpu": (ARCHIVED, "The first CPU benchmark: 1,000 steps, the earlier linear patch embedding, 4-step sampling; "
             "superseded by the 3,000-step runs."),
     "cpu_3000_conv": (ARCHIVED, "R&D-AI on reach-v3 (training seed 0) with 4-step sampling; the current reach-v3 "

@@ -162,6 +162,10 @@ class ActionAdapter:
         gripper: whether the dataset action ends with one gripper column.
         gripper_open / gripper_closed: the dataset's gripper values for open / closed.
         gripper_threshold: dataset value separating open from closed (default: midpoint).
+        gripper_from_data: replace ``gripper_open`` / ``gripper_closed`` by the values the training demos use
+            (their action gripper column's 2nd and 98th percentiles, on the sides given here; threshold midway),
+            once, when training starts (:meth:`fit_gripper_range`); the saved config holds the fitted values. For
+            teleoperated grippers (the SO-101's 0-100) whose demos never reach the nominal ends.
         validate: check shapes, NaN/Inf and rigidity of the poses (costs a device sync on CUDA).
         rigid_atol: tolerance of the rigidity check of ``T_world_ee``.
     """
@@ -174,6 +178,7 @@ class ActionAdapter:
         gripper_open: float = -1.0,
         gripper_closed: float = 1.0,
         gripper_threshold: float | None = None,
+        gripper_from_data: bool = False,
         validate: bool = True,
         rigid_atol: float = 1e-3,
     ):
@@ -183,6 +188,7 @@ class ActionAdapter:
         self.gripper_open = float(gripper_open)
         self.gripper_closed = float(gripper_closed)
         self.gripper_threshold = None if gripper_threshold is None else float(gripper_threshold)
+        self.gripper_from_data = bool(gripper_from_data)
         self.validate = bool(validate)
         self.rigid_atol = float(rigid_atol)
 
@@ -211,6 +217,29 @@ class ActionAdapter:
         if self.gripper_threshold is not None:
             return self.gripper_threshold
         return 0.5 * (self.gripper_open + self.gripper_closed)
+
+    def fit_gripper_range(self, gripper_actions: Tensor) -> tuple[float, float] | None:
+        """With ``gripper_from_data``: set ``gripper_open`` / ``gripper_closed`` to the demos' gripper values
+        (``gripper_actions``: every action's gripper column, any shape; 2nd / 98th percentiles on the configured
+        sides), the threshold midway, and turn ``gripper_from_data`` off. Returns (open, closed), or None when
+        nothing is fitted (not asked, no gripper column)."""
+        if not (self.gripper and self.gripper_from_data):
+            return None
+        g = torch.as_tensor(gripper_actions, dtype=torch.float64).flatten()
+        g = g[torch.isfinite(g)]
+        if g.numel() == 0:
+            raise ValueError("gripper_from_data: the dataset's action has no finite gripper values")
+        low, high = (float(v) for v in torch.quantile(g, torch.tensor([0.02, 0.98], dtype=torch.float64)))
+        if high - low < 1e-6 * max(1.0, abs(self.gripper_open - self.gripper_closed)):
+            raise ValueError(
+                f"gripper_from_data: the demos' gripper never moves (always {low:g}); record demos that open and "
+                "close it, or set gripper_from_data=false with gripper_open / gripper_closed in the embodiment"
+            )
+        opens_high = self.gripper_open > self.gripper_closed
+        self.gripper_open, self.gripper_closed = (high, low) if opens_high else (low, high)
+        self.gripper_threshold = None
+        self.gripper_from_data = False
+        return self.gripper_open, self.gripper_closed
 
     def gripper_to_rnd(self, g: Tensor) -> Tensor:
         """Dataset gripper values -> {-1 (open), +1 (closed)}."""
@@ -303,6 +332,7 @@ class ActionAdapter:
             "gripper_open": self.gripper_open,
             "gripper_closed": self.gripper_closed,
             "gripper_threshold": self.gripper_threshold,
+            "gripper_from_data": self.gripper_from_data,
             "validate": self.validate,
             "rigid_atol": self.rigid_atol,
         }

@@ -45,7 +45,7 @@ from lerobot_rnd.sampler import (
     sample_actions,
     sampler_step,
 )
-from lerobot_rnd.statistics import MinMaxStats, estimate_rnd_statistics
+from lerobot_rnd.statistics import MinMaxStats, estimate_rnd_statistics, load_episode_arrays
 from lerobot_rnd.tasks import TASK_KEY, resolve_task_conditioning, task_indices
 
 logger = logging.getLogger(__name__)
@@ -392,8 +392,16 @@ class RnDModel(nn.Module):
     # ------------------------------------------------------------------------------------------------
     # Statistics.
     def fit_statistics(self, dataset_meta) -> None:
-        """Estimate the min/max of the action-space and image-space targets from the dataset on disk."""
+        """Estimate the min/max of the action-space and image-space targets from the dataset on disk (and, if
+        the action adapter asks for it, the demos' gripper open/closed values first)."""
         cfg = self.config
+        if self.action_adapter.gripper and self.action_adapter.gripper_from_data:
+            episodes = load_episode_arrays(dataset_meta.root)
+            grip = torch.cat([torch.from_numpy(action[:, -1]) for _, action in episodes])
+            opened, closed = self.action_adapter.fit_gripper_range(grip)
+            cfg.action_adapter = self.action_adapter.to_dict()  # saved with the checkpoint: fitted once
+            logger.info(f"R&D gripper: the demos' gripper is open at {opened:g} and closed at {closed:g} "
+                         f"(threshold {0.5 * (opened + closed):g}); the policy commands these values")  # fmt: skip
         stats = estimate_rnd_statistics(
             dataset_meta.root,
             n_obs_steps=cfg.n_obs_steps,

@@ -181,11 +181,14 @@ def so101_action_adapter(
 ) -> dict[str, Any]:
     """Action adapter spec of the LeRobot SO-101 action (absolute joint targets, degrees; gripper 0-100):
     ``joint_positions`` with the URDF text inline (a checkpoint needs no file). ``ik``: the adapter's ``ik_*``
-    arguments. ``gripper_threshold``: dataset gripper value between open and closed (default 50)."""
+    arguments. ``gripper_threshold``: dataset gripper value between open and closed; by default the policy takes
+    the open and closed values from the training demos (``gripper_from_data``: a teleoperated gripper rarely
+    reaches 0 or 100, and its demos may rest anywhere between)."""
     return JointPositionAdapter(
         urdf=URDF_PATH.read_text(), ee_link=EE_LINK, T_world_base=T_world_base,
         state_joint_indices=list(range(ARM_JOINTS)), joint_scale=DEG_TO_RAD, gripper_open=LEROBOT_GRIPPER_OPEN,
-        gripper_closed=LEROBOT_GRIPPER_CLOSED, gripper_threshold=gripper_threshold, **ik,
+        gripper_closed=LEROBOT_GRIPPER_CLOSED, gripper_threshold=gripper_threshold,
+        gripper_from_data=gripper_threshold is None, **ik,
     ).to_dict()  # fmt: skip
 
 

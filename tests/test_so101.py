@@ -413,3 +413,26 @@ def test_ik_in_float32_survives_a_target_the_arm_already_reaches():
     action = adapter.from_rnd(stay, -torch.ones(64, 8), T_world_ee, state=state)
     assert action.dtype == torch.float32
     torch.testing.assert_close(action[..., :5], state[:, None, :5].expand(64, 8, 5), atol=0.02, rtol=0)
+
+
+def test_gripper_open_and_closed_come_from_the_demos():
+    """A teleoperated SO-101 gripper rarely reaches 0 or 100: demos resting at 40-60 while approaching and 0-2 when
+    closed must read as open/closed (a fixed threshold of 50 once called 40 'closed', and the policy shut the jaws
+    at the start and lifted). The fit takes the demos' ends; the SO-101 adapter asks for it by default."""
+    from lerobot_rnd.action_adapters import ActionAdapter
+
+    spec = so101.so101_action_adapter()
+    assert spec["gripper_from_data"] is True
+    adapter = ActionAdapter.from_dict(spec)
+    demos = torch.cat([torch.linspace(40, 60, 200), torch.full((100,), 60.0), torch.linspace(60, 0, 20),
+                       torch.full((150,), 1.5)])  # fmt: skip
+    opened, closed = adapter.fit_gripper_range(demos)
+    assert 59.0 < opened <= 60.0 and 1.5 <= closed < 2.0
+    rnd = adapter.gripper_to_rnd(torch.tensor([40.0, 45.0, 60.0, 1.5, 10.0]))
+    assert rnd.tolist() == [-1.0, -1.0, -1.0, 1.0, 1.0]  # open, open, open, closed, closed
+    assert adapter.gripper_from_rnd(torch.tensor([-1.0, 1.0])).tolist() == pytest.approx([opened, closed])
+    again = ActionAdapter.from_dict(adapter.to_dict())  # the saved config keeps the fitted values, fitted once
+    assert again.gripper_from_data is False and again.gripper_open == opened and again.fit_gripper_range(demos) is None
+    with pytest.raises(ValueError, match="never moves"):
+        ActionAdapter.from_dict(spec).fit_gripper_range(torch.full((50,), 40.0))
+    assert ActionAdapter.from_dict(so101.so101_action_adapter(gripper_threshold=30.0)).gripper_from_data is False
