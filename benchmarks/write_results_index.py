@@ -60,9 +60,9 @@ STATUS: dict[str, tuple[str, str]] = {
     "render_cpu.json": (CURRENT, "Rasteriser throughput on CPU (benchmarks/bench_render.py); the only measurement "
                         "of it."),
     "panda_env_speed.json": (CURRENT, "Speed of the Panda suite's environments and scripted experts (no policy)."),
-    "so101_random": (CURRENT, "Simulated SO-101 (issue 34): reach-target and pick-cube, 10 random demos, cameras "
-                     "measured by lerobot-rnd-calibrate, 3,000 steps, 50 test episodes from seed 1000; in progress "
-                     "(results.md says which runs are done)."),
+    "so101_random": (CURRENT, "Simulated SO-101 (issue 34), cameras measured by lerobot-rnd-calibrate, 10 random "
+                     "demos, 3,000 steps, 50 test episodes from seed 1000: R&D-AI pick-cube 0/50 (it reaches towards "
+                     "the cube, never lifts it); reach-target, ACT and Diffusion Policy not run yet."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "

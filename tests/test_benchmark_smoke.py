@@ -30,6 +30,7 @@ def test_the_entry_point_keeps_the_names_imported_from_it():
 
 
 def test_wilson_interval():
+    assert reports.wilson_interval(0, 50)[0] == 0.0 and reports.wilson_interval(50, 50)[1] == 1.0
     assert math.isnan(reports.wilson_interval(0, 0)[0])
     lo, hi = reports.wilson_interval(0, 2)
     assert lo == 0.0 and hi == pytest.approx(0.6576, abs=1e-3)

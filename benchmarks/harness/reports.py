@@ -18,7 +18,11 @@ def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tup
     denom = 1.0 + z * z / n
     centre = (p + z * z / (2 * n)) / denom
     half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
-    return (max(0.0, centre - half), min(1.0, centre + half))
+    # exact ends for 0/n and n/n (the formula leaves a rounding error there, which once made a plot's error bar
+    # negative)
+    lo = 0.0 if successes == 0 else max(0.0, centre - half)
+    hi = 1.0 if successes == n else min(1.0, centre + half)
+    return (lo, hi)
 
 
 _LOG_LINE = re.compile(r"^\$ |step:([0-9.]+)([KMBT]?) .*?loss:([0-9.]+)", re.MULTILINE)
@@ -227,8 +231,9 @@ def plot_success_vs_demos(res: dict, path: Path) -> None:
                     continue
                 xs.append(n + (j - (len(b["methods"]) - 1) / 2) * 0.15 * (1 if len(b["demos"]) == 1 else 1))
                 ys.append(100 * s["rate"])
-                lo.append(100 * (s["rate"] - s["lo"]))
-                hi.append(100 * (s["hi"] - s["rate"]))
+                # max(0, .): the Wilson bound of 0/n (or n/n) can fall a rounding error past the rate
+                lo.append(max(0.0, 100 * (s["rate"] - s["lo"])))
+                hi.append(max(0.0, 100 * (s["hi"] - s["rate"])))
             if xs:
                 ax.errorbar(xs, ys, yerr=[lo, hi], marker="o", capsize=3, label=METHODS[m][1],
                             linestyle="-" if len(xs) > 1 else "none")  # fmt: skip
@@ -281,8 +286,8 @@ def plot_success_per_task(res: dict, path: Path) -> None:
     for j, m in enumerate(b["methods"]):
         xs = [i + (j - (len(b["methods"]) - 1) / 2) * width for i, _ in bars[m]]
         ys = [100 * s["rate"] for _, s in bars[m]]
-        lo = [100 * (s["rate"] - s["lo"]) for _, s in bars[m]]
-        hi = [100 * (s["hi"] - s["rate"]) for _, s in bars[m]]
+        lo = [max(0.0, 100 * (s["rate"] - s["lo"])) for _, s in bars[m]]
+        hi = [max(0.0, 100 * (s["hi"] - s["rate"])) for _, s in bars[m]]
         if xs:
             ax.bar(xs, ys, width=width, yerr=[lo, hi], capsize=3, label=METHODS[m][1])
     ax.set_xticks(range(len(panels)))
