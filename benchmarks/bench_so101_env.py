@@ -14,7 +14,6 @@ milliseconds of one control step (1/30 s) split into physics (20 MuJoCo substeps
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import statistics
@@ -27,6 +26,7 @@ _REPO = Path(__file__).resolve().parents[1]
 if str(_REPO) not in sys.path:
     sys.path.insert(0, str(_REPO))
 
+from benchmarks.harness.files import write_result_json
 from benchmarks.harness.reports import wilson_interval
 
 
@@ -118,7 +118,6 @@ def main(argv: list[str] | None = None) -> int:
     if a.out:
         out = {
             "benchmark": "so101_env",
-            "command": "python " + " ".join([sys.argv[0], *(argv if argv is not None else sys.argv[1:])]),
             "settings": {"episodes": a.episodes, "seed": a.seed, "episode_length": a.episode_length,
                          "image_size": a.image_size, "cameras": ["front", "wrist"]},
             "machine": {"cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
@@ -127,9 +126,7 @@ def main(argv: list[str] | None = None) -> int:
                         "load_average_1_5_15min": [round(x, 2) for x in os.getloadavg()]},
             "results": rows,
         }
-        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(a.out).write_text(json.dumps(out, indent=1))
-        print(f"wrote {a.out}")
+        write_result_json(a.out, out, argv)
     return 0
 
 

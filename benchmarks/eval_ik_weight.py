@@ -26,6 +26,7 @@ _REPO = Path(__file__).resolve().parents[1]
 if str(_REPO) not in sys.path:
     sys.path.insert(0, str(_REPO))
 
+from benchmarks.harness.files import _rel, write_result_json
 from benchmarks.harness.processes import run_logged, tool_argv
 from benchmarks.harness.reports import wilson_interval
 
@@ -98,14 +99,10 @@ def main(argv: list[str] | None = None) -> int:
         rows.append({"ik_orientation_weight": w, "successes": s, "episodes": n, "wilson95": [lo, hi],
                      "per_episode": successes})  # fmt: skip
         print(f"ik_orientation_weight {w:g}: {s}/{n} ({lo:.0%}-{hi:.0%})", flush=True)
-    shown = checkpoint.relative_to(_REPO) if checkpoint.is_relative_to(_REPO) else checkpoint
-    out = {"benchmark": "ik_weight", "checkpoint": str(shown), "env_type": a.env_type, "task": a.task,
+    out = {"benchmark": "ik_weight", "checkpoint": _rel(checkpoint), "env_type": a.env_type, "task": a.task,
            "seeds": [a.seed, a.seed + a.episodes - 1], "episode_length": a.episode_length,
-           "command": "python " + " ".join([sys.argv[0], *(argv if argv is not None else sys.argv[1:])]),
            "results": rows}  # fmt: skip
-    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-    Path(a.out).write_text(json.dumps(out, indent=1))
-    print(f"wrote {a.out}")
+    write_result_json(a.out, out, argv)
     return 0
 
 

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import glob
-import json
 import math
 import sys
 import time
@@ -30,6 +29,8 @@ import torch
 _REPO = Path(__file__).resolve().parents[1]
 if str(_REPO) not in sys.path:
     sys.path.insert(0, str(_REPO))
+
+from benchmarks.harness.files import write_result_json
 
 
 def load_demo_joints(root: Path, max_frames: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -127,12 +128,9 @@ def main(argv: list[str] | None = None) -> int:
     torch.set_default_dtype(torch.float64)
     rows = study(q_now, q_target, weights, perturbs)
     if a.out:
-        out = {"benchmark": "so101_ik_study",
-               "command": "python " + " ".join([sys.argv[0], *(argv if argv is not None else sys.argv[1:])]),
-               "dataset_root": a.dataset_root, "frames": len(q_now), "seed": a.seed, "results": rows}  # fmt: skip
-        Path(a.out).parent.mkdir(parents=True, exist_ok=True)
-        Path(a.out).write_text(json.dumps(out, indent=1))
-        print(f"wrote {a.out}")
+        out = {"benchmark": "so101_ik_study", "dataset_root": a.dataset_root, "frames": len(q_now), "seed": a.seed,
+               "results": rows}  # fmt: skip
+        write_result_json(a.out, out, argv)
     return 0
 
 
