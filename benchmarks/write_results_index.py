@@ -79,6 +79,11 @@ STATUS: dict[str, tuple[str, str]] = {
     "panda_spatial": (CURRENT, "Issue 33, in progress: Panda push-block, spatial protocol (furthest-point demos from "
                       "the centre, 27-cell x/y/yaw grid), 3,000 steps; so far R&D-AI with 2 demos: 0/27."),
     # ---- archived: superseded or exploratory ----
+    "so101_reach_wrist_spin": (ARCHIVED, "R&D-AI on SO-101 reach-target (10 demos, measured cameras, 3,000 steps): "
+                               "0/50. Superseded: the scripted expert rolled the wrist about 160 degrees in every "
+                               "demo, one way or the other by the side of the ball; the policy fitted the demos open "
+                               "loop but took the other branch in closed loop. The expert now keeps the roll (see its "
+                               "NOTE.md); the demos were re-recorded."),
     "so101_ik_weight_gripper50": (ARCHIVED, "First SO-101 R&D-AI checkpoints (reach-target, pick-cube; 10 demos, "
                                   "3,000 steps) per IK orientation weight 1 / 0.1 on validation seeds 100-129: 2/30 "
                                   "and 2/30, 0/30 and 0/30. Superseded: they read the demos' gripper with a fixed "
@@ -289,7 +294,9 @@ def configs_of(path: Path) -> list[str]:
         if isinstance(bench, dict):
             configs += [f"`{a}`" for a in bench.get("train_arg") or []]
         if data.get("benchmark") == "train_step":
-            configs += [f"policies_config/metaworld/{r['method']}.json" for r in data.get("results", [])]
+            # bench_train_step.py methods: NAME (MetaWorld) or SUITE/NAME
+            configs += [f"policies_config/{r['method'] if '/' in r['method'] else 'metaworld/' + r['method']}.json"
+                        for r in data.get("results", [])]
         if isinstance(data.get("configs"), dict):  # loss_parity.py: config file -> losses
             configs += [f"policies_config/{name}" for name in data["configs"]]
         if isinstance(data.get("args"), dict) and isinstance(data.get("results"), list):  # bench_inference.py

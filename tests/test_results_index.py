@@ -69,3 +69,15 @@ def test_a_stale_index_fails_the_check(tmp_path, monkeypatch):
     assert w.main(["--check"]) == 0
     (results / "archive" / "b.json").write_text(json.dumps({"command": "python other.py"}))
     assert w.main(["--check"]) == 1  # the JSON changed, INDEX.md did not
+
+
+def test_current_results_name_config_files_that_exist():
+    """A current result's config paths point at files in policies_config/ (a bench_train_step.py method SUITE/NAME
+    once came out as policies_config/metaworld/SUITE/NAME.json)."""
+    import re
+
+    current = (w.RESULTS / w.INDEX).read_text().split("## Archived")[0]
+    named = set(re.findall(r"policies_config/[\w/.-]+\.json", current))
+    assert any("/so101/" in p for p in named), "expected the SO-101 configs among the current results"
+    missing = sorted(p for p in named if not (w.REPO / p).exists())
+    assert not missing, missing

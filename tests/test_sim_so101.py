@@ -114,6 +114,23 @@ def test_experts_solve_the_tasks_in_joint_space(task):
     assert wins == 3
 
 
+@pytest.mark.parametrize(("task", "max_roll_deg"), [("reach-target", 15.0), ("pick-cube", 50.0)])
+def test_experts_barely_roll_the_wrist(task, max_roll_deg):
+    """A teleoperator reaching a ball does not spin the wrist. The first reach-target expert pointed the jaws away
+    from the base and rolled the wrist about 160 degrees in every demo, one way or the other by the side of the
+    ball; no policy learned that (R&D-AI 0/50). The cube's 4-fold symmetry bounds pick-cube's roll to about 45
+    degrees plus the pan's share."""
+    env = RnDSO101Env(task, observation_height=48, observation_width=64)
+    low, high = PLACEMENT_RANGES[task]
+    rng = np.random.default_rng(0)
+    for _ in range(6):
+        env.reset(options={"placement": low + rng.uniform(size=3) * (high - low)})
+        plan = SO101Expert(task)._make_plan(env)
+        roll_deg = np.abs(plan[:, 4] - START_JOINTS[4]).max()
+        assert roll_deg < max_roll_deg, (task, env.placement, roll_deg)
+    env.close()
+
+
 def test_a_simulated_calibration_session_measures_the_cameras(tmp_path, capsys):
     """The real arm's workflow on the simulated one: record a session (board still, arm pausing at poses),
     lerobot-rnd-calibrate it, compare with MuJoCo's exact cameras (issue 34's tolerances: 5 mm, 1 degree)."""

@@ -2,7 +2,8 @@
 gripper poses, turn them into LeRobot joint targets by the robot's IK (:func:`ik_position_first`) and play
 minimum-jerk joint trajectories between them (the action is the next joint target, as a leader arm gives).
 
-- ``reach-target``: the gripper moves to the ball, pointing down and out from the base, and holds.
+- ``reach-target``: the gripper moves to the ball, pointing down with the jaws facing the base as in the start pose
+  (so the wrist barely rolls, as a teleoperator would reach), and holds.
 - ``pick-cube``: above the cube (top-down, the jaws across the pair of faces that needs the least wrist roll),
   down, close, lift 8 cm.
 """
@@ -85,7 +86,10 @@ class SO101Expert:
         out = []
         if self.task == "reach-target":
             t = env.target_pos()
-            R = _top_down(math.atan2(t[1], t[0]))
+            # EE x back towards the base, as in the start pose: the ball is round, so any yaw reaches it, and this
+            # one needs no wrist roll. (Pointing it out from the base made every demo roll the wrist about 160
+            # degrees, one way or the other by the side of the ball: a discontinuous motion no policy learned.)
+            R = _top_down(math.atan2(t[1], t[0]) + math.pi)
             goal, err = ik_position_first(_pose(R, t), np.r_[q[:5], GRIPPER_OPEN])
             self.max_ik_error = err
             return [(goal, 45)]
