@@ -62,7 +62,8 @@ STATUS: dict[str, tuple[str, str]] = {
     "panda_env_speed.json": (CURRENT, "Speed of the Panda suite's environments and scripted experts (no policy)."),
     "so101_random": (CURRENT, "Simulated SO-101 (issue 34), cameras measured by lerobot-rnd-calibrate, 10 random "
                      "demos, 3,000 steps, 50 test episodes from seed 1000: R&D-AI pick-cube 0/50 (it reaches towards "
-                     "the cube, never lifts it); reach-target, ACT and Diffusion Policy not run yet."),
+                     "the cube, never lifts it), reach-target 3/50 (demos re-recorded with the expert that keeps the "
+                     "wrist roll); ACT and Diffusion Policy not run yet."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "
