@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
                         "load_average_1_5_15min": [round(x, 2) for x in os.getloadavg()]},
             "results": rows,
         }
-        write_result_json(a.out, out, argv)
+        write_result_json(a.out, out, argv, script="benchmarks/bench_so101_env.py")
     return 0
 
 

@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     out = {"benchmark": "ik_weight", "checkpoint": _rel(checkpoint), "env_type": a.env_type, "task": a.task,
            "seeds": [a.seed, a.seed + a.episodes - 1], "episode_length": a.episode_length,
            "results": rows}  # fmt: skip
-    write_result_json(a.out, out, argv)
+    write_result_json(a.out, out, argv, script="benchmarks/eval_ik_weight.py")
     return 0
 
 

@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     if a.out:
         out = {"benchmark": "so101_ik_study", "dataset_root": a.dataset_root, "frames": len(q_now), "seed": a.seed,
                "results": rows}  # fmt: skip
-        write_result_json(a.out, out, argv)
+        write_result_json(a.out, out, argv, script="benchmarks/so101_ik_study.py")
     return 0
 
 

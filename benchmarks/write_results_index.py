@@ -64,6 +64,12 @@ STATUS: dict[str, tuple[str, str]] = {
                      "demos, 3,000 steps, 50 test episodes from seed 1000: R&D-AI pick-cube 0/50 (it reaches towards "
                      "the cube, never lifts it), reach-target 3/50 (demos re-recorded with the expert that keeps the "
                      "wrist roll); ACT and Diffusion Policy not run yet."),
+    "chunk_goal_response_so101_reach_rnd_ai.json": (CURRENT, "Open loop on its 10 reach-target demos, the so101_random "
+                                                    "R&D-AI checkpoint: how much its action chunk follows each "
+                                                    "demo's motion (slope 1) from frames 0, 8 and 16. At frame 0, "
+                                                    "where only the images tell the demos apart, the shoulder pan "
+                                                    "follows with slope 0.20; from frame 8, with motion in its "
+                                                    "history, 0.77."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "

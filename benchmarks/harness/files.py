@@ -23,13 +23,14 @@ def _write_json(path: Path, obj) -> None:
     os.replace(tmp, path)
 
 
-def write_result_json(path, payload: dict, argv: list[str] | None = None) -> None:
-    """A benchmark script's result: ``payload`` plus the ``command`` that made it (this script and ``argv``, or
-    the process's arguments), written atomically to ``path``."""
+def write_result_json(path, payload: dict, argv: list[str] | None = None, script: str | None = None) -> None:
+    """A benchmark script's result: ``payload`` plus the ``command`` that made it (``script``, relative to the
+    repo, or the process's program, then ``argv`` or the process's arguments), written atomically to ``path``."""
     import sys
 
     args = argv if argv is not None else sys.argv[1:]
-    _write_json(Path(path), {**payload, "command": "python " + " ".join([sys.argv[0], *args])})
+    program = script if script is not None else sys.argv[0]
+    _write_json(Path(path), {**payload, "command": "python " + " ".join([program, *args])})
     print(f"wrote {path}")
 
 

@@ -1,0 +1,126 @@
+#!/usr/bin/env python
+"""Does a trained policy's action chunk follow the goal, or only the motion already under way? Open loop, on its demos.
+
+A policy can fit its demonstrations on their own frames and still fail in closed loop: with a past frame in its
+input it can continue the motion the history shows instead of reading where the goal is (the "copycat" problem,
+Wen et al. 2020). The two differ at the first frame of an episode, where the arm has not moved yet and every demo
+starts from the same state: there only the images tell the demos apart.
+
+For each demo episode and each start frame t (``--frames``), the script feeds the policy the recorded
+observations (with its own history length), samples ``--draws`` chunks (noise draws for diffusion policies), and
+compares the joint target at the end of the executed part of the chunk (``n_action_steps``) with the demo's action
+at the same step, both relative to the joint state at t. Per start frame and joint it writes the least-squares slope
+of predicted on demonstrated displacement across the episodes (1: follows the demos, 0: the same motion for every
+goal), the correlation, the mean absolute error and the spread over draws. Any LeRobot policy type loads.
+
+    python benchmarks/chunk_goal_response.py \\
+        --policy-path <run>/train/checkpoints/003000/pretrained_model \\
+        --dataset-root outputs/benchmark/data/so101_reach-target_random_s0_n10 \\
+        --out benchmarks/results/chunk_goal_response_so101_reach.json
+
+Demo episodes only: no evaluation seed is used.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import torch
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO))
+from benchmarks.harness.files import write_result_json
+
+
+def response_stats(pred: np.ndarray, demo: np.ndarray) -> dict:
+    """pred (E, D) and demo (E, D) displacements over E episodes -> per-joint slope, correlation, MAE (lists)."""
+    slope, corr = [], []
+    for j in range(demo.shape[1]):
+        x, y = demo[:, j] - demo[:, j].mean(), pred[:, j] - pred[:, j].mean()
+        sxx = float((x * x).sum())
+        slope.append(float((x * y).sum() / sxx) if sxx > 1e-12 else None)
+        syy = float((y * y).sum())
+        corr.append(float((x * y).sum() / np.sqrt(sxx * syy)) if sxx > 1e-12 and syy > 1e-12 else None)
+    return {"slope": slope, "correlation": corr, "mean_abs_error": np.abs(pred - demo).mean(0).tolist(),
+            "demo_displacement_std": demo.std(0).tolist()}  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--policy-path", required=True, help="a pretrained_model folder")
+    p.add_argument("--dataset-root", required=True, help="the LeRobot dataset the policy was trained on")
+    p.add_argument("--repo-id", default=None, help="the dataset's repo id (default: local/<folder name>)")
+    p.add_argument("--frames", default="0,8,16", help="start frames within each episode, comma-separated")
+    p.add_argument("--draws", type=int, default=8, help="chunks sampled per observation")
+    p.add_argument("--seed", type=int, default=0, help="torch seed of the noise draws")
+    p.add_argument("--out", required=True, help="JSON to write")
+    a = p.parse_args(argv)
+
+    from lerobot.configs.policies import PreTrainedConfig
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    from lerobot.policies.factory import make_policy, make_pre_post_processors
+
+    import lerobot_rnd  # noqa: F401  (registers the rnd policy)
+
+    root = Path(a.dataset_root)
+    ds = LeRobotDataset(a.repo_id or f"local/{root.name}", root=root)
+    cfg = PreTrainedConfig.from_pretrained(a.policy_path)
+    cfg.pretrained_path = a.policy_path
+    policy = make_policy(cfg=cfg, ds_meta=ds.meta)
+    policy.eval()
+    pre, post = make_pre_post_processors(policy_cfg=cfg, pretrained_path=a.policy_path)
+    history = int(getattr(cfg, "n_obs_steps", 1) or 1)
+    k_end = int(cfg.n_action_steps) - 1
+    frames = [int(x) for x in a.frames.split(",")]
+    torch.manual_seed(a.seed)
+
+    episodes = ds.meta.episodes
+    rows = []
+    for t0 in frames:
+        preds, demos, spreads = [], [], []
+        for e in range(ds.num_episodes):
+            start, stop = int(episodes[e]["dataset_from_index"]), int(episodes[e]["dataset_to_index"])
+            if start + t0 >= stop:
+                continue
+            past = [ds[start + max(t0 - h, 0)] for h in range(history - 1, -1, -1)]  # oldest first
+            now = past[-1]
+            batch = {}
+            for key, value in now.items():
+                if not key.startswith("observation."):
+                    continue
+                x = torch.stack([f[key] for f in past]) if history > 1 else value
+                batch[key] = x[None].expand(a.draws, *x.shape).clone()
+            batch["task"] = [now["task"]] * a.draws
+            with torch.no_grad():
+                chunk = policy.predict_action_chunk(pre(batch))  # (draws, T, A), normalised
+            action = post(chunk[:, k_end]).float().cpu().numpy()  # (draws, A) in the dataset's units
+            state = now["observation.state"].numpy()
+            demo_action = ds[min(start + t0 + k_end, stop - 1)]["action"].numpy()
+            preds.append(action.mean(0) - state)
+            demos.append(demo_action - state)
+            spreads.append(action.std(0))
+        pred, demo = np.array(preds), np.array(demos)
+        rows.append({"start_frame": t0, "episodes": len(preds), **response_stats(pred, demo),
+                     "draw_std": np.mean(spreads, axis=0).tolist()})  # fmt: skip
+
+    names = ds.meta.features["action"].get("names") or [f"a{i}" for i in range(len(rows[0]["slope"]))]
+    print(f"policy {a.policy_path} ({cfg.type}, history {history}, chunk end at step {k_end}); "
+          f"{ds.num_episodes} demo episodes")  # fmt: skip
+    print("slope of predicted on demonstrated displacement (1: follows the demos, 0: one motion for every goal)")
+    print("frame  " + "  ".join(f"{n[:12]:>12}" for n in names))
+    for r in rows:
+        cells = ["{:>12}".format("-" if s is None else f"{s:.2f}") for s in r["slope"]]
+        print(f"{r['start_frame']:>5}  " + "  ".join(cells))
+    write_result_json(Path(a.out), {
+        "benchmark": "chunk_goal_response", "policy_path": a.policy_path, "policy_type": cfg.type,
+        "dataset_root": str(root), "n_obs_steps": history, "n_action_steps": int(cfg.n_action_steps),
+        "draws": a.draws, "seed": a.seed, "joint_names": names, "rows": rows,
+    }, argv, script="benchmarks/chunk_goal_response.py")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

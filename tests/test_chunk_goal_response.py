@@ -1,0 +1,52 @@
+"""benchmarks/chunk_goal_response.py: slopes checked on hand-computed displacements, and a run on the toy dataset."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import benchmarks.chunk_goal_response as cgr
+
+
+def test_a_policy_that_copies_the_demos_has_slope_one():
+    demo = np.array([[0.0, 1.0], [2.0, -1.0], [4.0, 3.0]])
+    s = cgr.response_stats(demo.copy(), demo)
+    assert s["slope"] == pytest.approx([1.0, 1.0]) and s["correlation"] == pytest.approx([1.0, 1.0])
+    assert s["mean_abs_error"] == pytest.approx([0.0, 0.0])
+
+
+def test_half_the_motion_plus_an_offset():
+    demo = np.array([[0.0], [2.0], [4.0]])
+    s = cgr.response_stats(0.5 * demo + 3.0, demo)  # pred 3, 4, 5: errors 3, 2, 1
+    assert s["slope"] == pytest.approx([0.5]) and s["correlation"] == pytest.approx([1.0])
+    assert s["mean_abs_error"] == pytest.approx([2.0])
+    assert s["demo_displacement_std"] == pytest.approx([np.std([0.0, 2.0, 4.0])])
+
+
+def test_one_motion_for_every_goal_has_slope_zero_and_no_correlation():
+    demo = np.array([[-3.0, 1.0], [0.0, 1.0], [3.0, 1.0]])
+    s = cgr.response_stats(np.full((3, 2), 0.7), demo)
+    assert s["slope"][0] == pytest.approx(0.0) and s["correlation"][0] is None
+    assert s["slope"][1] is None  # the demos do not move this joint differently: nothing to follow
+
+
+def test_runs_on_a_saved_policy_and_its_demos(toy_dataset_root, tmp_path):
+    from lerobot.policies.factory import make_pre_post_processors
+
+    from tests.helpers import make_policy
+
+    policy, meta = make_policy(toy_dataset_root)
+    pre, post = make_pre_post_processors(policy.config, dataset_stats=meta.stats)
+    ckpt = tmp_path / "ckpt"
+    for obj in (policy, pre, post):
+        obj.save_pretrained(ckpt)
+    out = tmp_path / "cgr.json"
+    assert cgr.main(["--policy-path", str(ckpt), "--dataset-root", str(toy_dataset_root), "--repo-id",
+                     "local/toy_reach", "--frames", "0,2", "--draws", "2", "--out", str(out)]) == 0  # fmt: skip
+    result = json.loads(out.read_text())
+    assert [r["start_frame"] for r in result["rows"]] == [0, 2]
+    assert all(r["episodes"] == meta.total_episodes for r in result["rows"])
+    assert len(result["rows"][0]["slope"]) == len(result["joint_names"]) == meta.features["action"]["shape"][0]
+    assert result["n_obs_steps"] == policy.config.n_obs_steps and "chunk_goal_response.py" in result["command"]
