@@ -56,6 +56,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--frames", default="0,8,16", help="start frames within each episode, comma-separated")
     p.add_argument("--draws", type=int, default=8, help="chunks sampled per observation")
     p.add_argument("--seed", type=int, default=0, help="torch seed of the noise draws")
+    p.add_argument("--still-history", action="store_true",
+                   help="feed the current frame as every past frame too (no motion in the history): if the slopes "
+                        "drop, the policy was reading the motion rather than the goal")
     p.add_argument("--out", required=True, help="JSON to write")
     a = p.parse_args(argv)
 
@@ -85,7 +88,8 @@ def main(argv: list[str] | None = None) -> int:
             start, stop = int(episodes[e]["dataset_from_index"]), int(episodes[e]["dataset_to_index"])
             if start + t0 >= stop:
                 continue
-            past = [ds[start + max(t0 - h, 0)] for h in range(history - 1, -1, -1)]  # oldest first
+            lags = [0] * history if a.still_history else list(range(history - 1, -1, -1))
+            past = [ds[start + max(t0 - h, 0)] for h in lags]  # oldest first
             now = past[-1]
             batch = {}
             for key, value in now.items():
@@ -117,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
     write_result_json(Path(a.out), {
         "benchmark": "chunk_goal_response", "policy_path": a.policy_path, "policy_type": cfg.type,
         "dataset_root": str(root), "n_obs_steps": history, "n_action_steps": int(cfg.n_action_steps),
-        "draws": a.draws, "seed": a.seed, "joint_names": names, "rows": rows,
+        "draws": a.draws, "seed": a.seed, "still_history": a.still_history, "joint_names": names, "rows": rows,
     }, argv, script="benchmarks/chunk_goal_response.py")  # fmt: skip
     return 0
 

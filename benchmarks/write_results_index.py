@@ -68,8 +68,13 @@ STATUS: dict[str, tuple[str, str]] = {
                                                     "R&D-AI checkpoint: how much its action chunk follows each "
                                                     "demo's motion (slope 1) from frames 0, 8 and 16. At frame 0, "
                                                     "where only the images tell the demos apart, the shoulder pan "
-                                                    "follows with slope 0.20; from frame 8, with motion in its "
-                                                    "history, 0.77."),
+                                                    "follows with slope 0.20; from frame 8, once the arm has moved, "
+                                                    "0.77."),
+    "chunk_goal_response_so101_reach_rnd_ai_still.json": (CURRENT, "The same with the current frame fed as the past "
+                                                          "one too (no motion in the history): the same slopes (pan "
+                                                          "0.20, 0.76, 0.76), so the policy does not continue the "
+                                                          "motion it sees; it follows the demos once the arm's pose "
+                                                          "differs, and barely from the images alone."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "
