@@ -75,6 +75,9 @@ STATUS: dict[str, tuple[str, str]] = {
                                                           "0.20, 0.76, 0.76), so the policy does not continue the "
                                                           "motion it sees; it follows the demos once the arm's pose "
                                                           "differs, and barely from the images alone."),
+    "chunk_goal_response_so101_pick_rnd_ai.json": (CURRENT, "The same on the pick-cube R&D-AI checkpoint (frames 0, 8, "
+                                                   "16, 32): shoulder pan slope 0.09 at frame 0, 0.72 at 8, 0.89 at "
+                                                   "16; the first chunk barely depends on where the cube is."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "
