@@ -61,9 +61,9 @@ STATUS: dict[str, tuple[str, str]] = {
                         "of it."),
     "panda_env_speed.json": (CURRENT, "Speed of the Panda suite's environments and scripted experts (no policy)."),
     "so101_random": (CURRENT, "Simulated SO-101 (issue 34), cameras measured by lerobot-rnd-calibrate, 10 random "
-                     "demos, 3,000 steps, 50 test episodes from seed 1000: R&D-AI pick-cube 0/50 (it reaches towards "
-                     "the cube, never lifts it), reach-target 3/50 (demos re-recorded with the expert that keeps the "
-                     "wrist roll); ACT and Diffusion Policy not run yet."),
+                     "demos, 3,000 steps, 50 test episodes from seed 1000: reach-target R&D-AI 3/50, ACT 5/50 (demos "
+                     "re-recorded with the expert that keeps the wrist roll); pick-cube R&D-AI 0/50 (it reaches "
+                     "towards the cube, never lifts it), ACT not run yet; Diffusion Policy not run."),
     "chunk_goal_response_so101_reach_rnd_ai.json": (CURRENT, "Open loop on its 10 reach-target demos, the so101_random "
                                                     "R&D-AI checkpoint: how much its action chunk follows each "
                                                     "demo's motion (slope 1) from frames 0, 8 and 16. At frame 0, "
@@ -75,6 +75,10 @@ STATUS: dict[str, tuple[str, str]] = {
                                                           "0.20, 0.76, 0.76), so the policy does not continue the "
                                                           "motion it sees; it follows the demos once the arm's pose "
                                                           "differs, and barely from the images alone."),
+    "chunk_goal_response_so101_reach_act.json": (CURRENT, "The same on the so101_random ACT reach-target checkpoint "
+                                                 "(deterministic, 1 draw): its chunk follows the demos from frame 0 "
+                                                 "(shoulder pan slope 1.18, 1.06 at 8, 1.02 at 16), where R&D-AI's "
+                                                 "follows with 0.20; yet ACT also fails in closed loop (5/50)."),
     "chunk_goal_response_so101_pick_rnd_ai.json": (CURRENT, "The same on the pick-cube R&D-AI checkpoint (frames 0, 8, "
                                                    "16, 32): shoulder pan slope 0.09 at frame 0, 0.72 at 8, 0.89 at "
                                                    "16; the first chunk barely depends on where the cube is."),

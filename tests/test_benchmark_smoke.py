@@ -124,6 +124,20 @@ def test_dry_run_commands(tmp_path):
         assert "--seed=1000" in c and "--env.type=rnd_mw" in c and "--eval.n_episodes=2" in c
 
 
+def test_eval_only_skips_a_run_without_a_checkpoint_instead_of_failing_it(tmp_path):
+    """--eval-only collects what is trained: a run never trained is left for later, not marked failed (it once
+    was, and results.md listed it as FAILED)."""
+    ckpt = tmp_path / "work" / "runs" / "random" / "act" / "reach-v3" / "n3" / "seed0" / "train" / "checkpoints"
+    (ckpt / "000002" / "pretrained_model").mkdir(parents=True)
+    (ckpt / "last").symlink_to("000002")
+    cmds = _dry_run(tmp_path, "--methods", "rnd_ai,act", "--eval-only")
+    ev = [c for c in cmds if "lerobot-eval" in c]
+    assert not [c for c in cmds if "lerobot-train" in c]
+    assert len(ev) == 1 and "/act/" in ev[0], ev
+    run = tmp_path / "work" / "runs" / "random" / "rnd_ai" / "reach-v3" / "n3" / "seed0" / "run.json"
+    assert not run.exists() or json.loads(run.read_text()).get("status") != "failed"
+
+
 def test_train_only_trains_and_leaves_the_evaluation_for_later(tmp_path):
     cmds = _dry_run(tmp_path, "--methods", "rnd_ai,act", "--train-only",
                     "--train-arg", "rnd:--policy.dim_model=384")  # fmt: skip

@@ -587,6 +587,9 @@ class Benchmark:
         if st.get("status") == "failed" and not a.retry_failed:
             self.failed = True
             return
+        if a.eval_only and not (rdir / "train" / "checkpoints" / "last" / "pretrained_model").exists():
+            print(f"--eval-only: {method} / {task} / n{n} has no checkpoint yet; left for a later --resume", flush=True)
+            return
         st.update(method=method, task=task, demos=n, seed=seed, protocol=a.protocol, scale=a.scale, suite=self.suite_name,
                   status="running", code_commit=st.get("code_commit") or git_commit())  # fmt: skip
         if len(unit_tasks(task)) > 1:
