@@ -603,6 +603,30 @@ def multitask_section(one_step: dict | None) -> list[str]:
     return lines
 
 
+SO101_FOLDER = "so101_random"
+SO101_TASKS = ("reach-target", "pick-cube")
+
+
+def so101_section() -> list[str]:
+    """The simulated SO-101's success table (issue 34): one row per method, from the run JSON of SO101_FOLDER."""
+    names = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}
+    rows = []
+    for method, name in names.items():
+        cells = {t: run_file_cells(SO101_FOLDER, method, (t,)).get(t) for t in SO101_TASKS}
+        rows.append(f"| {name} | " + " | ".join(cell(*c) if c else "not run yet" for c in cells.values()) + " |")
+    return [
+        "### Simulated SO-101 (joint-space arm, cameras measured by `lerobot-rnd-calibrate`)",
+        "",
+        "10 random demos, 3,000 training steps, 50 test episodes from seed 1000 (Wilson 95% intervals); "
+        f"[benchmarks/results/{SO101_FOLDER}](../benchmarks/results/{SO101_FOLDER}/results.md), "
+        "`policies_config/so101/`. What the failures show: [docs/SO101.md](SO101.md).",
+        "",
+        "| method | " + " | ".join(SO101_TASKS) + " |",
+        "| --- | " + " | ".join("---" for _ in SO101_TASKS) + " |",
+        *rows,
+    ]
+
+
 def current_block() -> list[str]:
     """The generated opening of docs/BENCHMARKS.md: the current results of the shipped configs."""
     one_step = _load(RESULTS / "one_step_sampling_test.json")
@@ -617,6 +641,8 @@ def current_block() -> list[str]:
     parts += reach_n20_section(n20_6000) + [""]
     if (RESULTS / MULTITASK_FOLDER).exists():
         parts += multitask_section(one_step) + [""]
+    if (RESULTS / SO101_FOLDER / "runs").exists():
+        parts += so101_section() + [""]
     train_steps = [(p.name, _load(p)) for p in sorted(RESULTS.glob("train_step_cpu*.json"))]
     inference = RESULTS / "inference_cpu_tier_avx512.json"
     parts += cost_section(train_steps, (inference.name, _load(inference)) if inference.exists() else None) + [""]

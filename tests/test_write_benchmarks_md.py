@@ -168,3 +168,19 @@ def test_every_result_in_the_readme_is_a_current_one():
     assert len(cells) >= 11
     for c in cells:
         assert c.replace("**", "") in block, c
+
+
+def test_so101_section_reads_the_run_files_and_says_what_is_not_run(tmp_path, monkeypatch):
+    import json
+
+    import benchmarks.write_benchmarks_md as w
+
+    runs = tmp_path / w.SO101_FOLDER / "runs"
+    runs.mkdir(parents=True)
+    chunks = {"0": {"successes": [True, False, False, False, False]}, "1": {"successes": [True, True, False, False, False]}}
+    (runs / "act__reach-target__n10__seed0.json").write_text(json.dumps({"status": "done", "eval_chunks": chunks}))
+    (runs / "rnd_ai__pick-cube__n10__seed0.json").write_text(json.dumps({"status": "failed", "eval_chunks": chunks}))
+    monkeypatch.setattr(w, "RESULTS", tmp_path)
+    table = "\n".join(w.so101_section())
+    assert "| ACT | 3/10 (11-60%) | not run yet |" in table  # Wilson 95% for 3/10: 10.8-60.3%
+    assert "| R&D-AI | not run yet | not run yet |" in table  # a failed run is no result
