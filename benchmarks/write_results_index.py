@@ -99,10 +99,10 @@ STATUS: dict[str, tuple[str, str]] = {
                       "the centre, 27-cell x/y/yaw grid), 3,000 steps; so far R&D-AI with 2 demos: 0/27."),
     # ---- archived: superseded or exploratory ----
     "so101_reach_wrist_spin": (ARCHIVED, "R&D-AI on SO-101 reach-target (10 demos, measured cameras, 3,000 steps): "
-                               "0/50. Superseded: the scripted expert rolled the wrist about 160 degrees in every "
-                               "demo, one way or the other by the side of the ball; the policy fitted the demos open "
-                               "loop but took the other branch in closed loop. The expert now keeps the roll (see its "
-                               "NOTE.md); the demos were re-recorded."),
+                               "0/50. Superseded: the scripted expert rolled the wrist far in every "
+                               "demo, one way or the other by the side of the ball; the policy fitted the demos on "
+                               "their own frames (chunk_goal_response.json) but reached no ball. The expert now "
+                               "keeps the roll (see its NOTE.md); the demos were re-recorded."),
     "so101_ik_weight_gripper50": (ARCHIVED, "First SO-101 R&D-AI checkpoints (reach-target, pick-cube; 10 demos, "
                                   "3,000 steps) per IK orientation weight 1 / 0.1 on validation seeds 100-129: 2/30 "
                                   "and 2/30, 0/30 and 0/30. Superseded: they read the demos' gripper with a fixed "
