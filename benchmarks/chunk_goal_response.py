@@ -33,6 +33,7 @@ import torch
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 from benchmarks.harness.files import write_result_json
+from benchmarks.trace_rollouts import parse_policy_args
 
 
 def response_stats(pred: np.ndarray, demo: np.ndarray) -> dict:
@@ -59,6 +60,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--still-history", action="store_true",
                    help="feed the current frame as every past frame too (no motion in the history): if the slopes "
                         "drop, the policy was reading the motion rather than the goal")
+    p.add_argument("--policy-arg", action="append", default=[], metavar="FIELD=VALUE",
+                   help="override a sampler setting of the loaded config, e.g. num_inference_steps=4 (repeatable; "
+                        "as trace_rollouts.py)")
     p.add_argument("--out", required=True, help="JSON to write")
     a = p.parse_args(argv)
 
@@ -72,6 +76,10 @@ def main(argv: list[str] | None = None) -> int:
     ds = LeRobotDataset(a.repo_id or f"local/{root.name}", root=root)
     cfg = PreTrainedConfig.from_pretrained(a.policy_path)
     cfg.pretrained_path = a.policy_path
+    try:
+        cfg = parse_policy_args(cfg, a.policy_arg)
+    except ValueError as e:
+        p.error(str(e))
     policy = make_policy(cfg=cfg, ds_meta=ds.meta)
     policy.eval()
     pre, post = make_pre_post_processors(policy_cfg=cfg, pretrained_path=a.policy_path)
@@ -121,7 +129,8 @@ def main(argv: list[str] | None = None) -> int:
     write_result_json(Path(a.out), {
         "benchmark": "chunk_goal_response", "policy_path": a.policy_path, "policy_type": cfg.type,
         "dataset_root": str(root), "n_obs_steps": history, "n_action_steps": int(cfg.n_action_steps),
-        "draws": a.draws, "seed": a.seed, "still_history": a.still_history, "joint_names": names, "rows": rows,
+        "draws": a.draws, "seed": a.seed, "still_history": a.still_history,
+        "policy_args": a.policy_arg, "joint_names": names, "rows": rows,
     }, argv, script="benchmarks/chunk_goal_response.py")  # fmt: skip
     return 0
 

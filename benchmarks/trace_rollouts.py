@@ -3,7 +3,8 @@
 
 A failed reach episode only says "not within 5 cm". This script runs lerobot-eval's own rollout loop
 (`lerobot.scripts.lerobot_eval.rollout`, same env, processors and seeds as `lerobot-eval --seed=<first>`)
-and records, per episode, MetaWorld's gripper centre (`tcp_center`) at every step, the goal, the closest
+and records, per episode, the gripper centre (MetaWorld's `tcp_center`, the SO-101's EE site) at every step, the
+goal (the SO-101's target or cube), the closest
 and final distances, how far the gripper still moved over the last 50 steps, and the nearest demo goal of
 the policy's training set. It tells apart a policy that heads for the goal and stops short, one that goes
 to where a demonstration went, and one that wanders. `goal_response` sums it up: per axis, how far the
@@ -35,9 +36,37 @@ sys.path.insert(0, str(REPO))
 from benchmarks.eval_train_placements import training_placements  # noqa: E402
 
 
+def recording_suite(data_root: Path) -> str:
+    """The suite a recording was made in ("metaworld", "so101", ...; `meta/rnd_recording.json`)."""
+    from lerobot_rnd.sim.record import recorded_setting
+
+    settings = json.loads((data_root / "meta" / "rnd_recording.json").read_text())["settings"]
+    return recorded_setting(settings, "suite")
+
+
 def demo_goals(data_root: Path) -> np.ndarray:
-    """(N, 3) goal positions of a MetaWorld recording's demos in episode order (the placement's last three numbers)."""
-    return np.array(training_placements(data_root), dtype=np.float64)[:, -3:]
+    """(N, 3) goal positions (world frame, m) of a recording's demos in episode order: MetaWorld, the placement's
+    last three numbers; SO-101 reach-target, the target (x, y, z); SO-101 pick-cube, the cube's centre from its
+    (x, y, yaw) placement."""
+    placements = np.array(training_placements(data_root), dtype=np.float64)
+    settings = json.loads((data_root / "meta" / "rnd_recording.json").read_text())["settings"]
+    if recording_suite(data_root) == "so101" and settings["task"] == "pick-cube":
+        from lerobot_rnd.sim.so101_scene import CUBE_HALF
+
+        return np.concatenate([placements[:, :2], np.full((len(placements), 1), CUBE_HALF)], axis=1)
+    return placements[:, -3:]
+
+
+def demo_hand_positions(data_root: Path, states: np.ndarray) -> np.ndarray:
+    """(S, 3) hand positions (world frame, m) from a recording's (S, D) states: MetaWorld's state starts with the
+    hand position; the SO-101's state is joints, so the gripper frame comes from the URDF's forward kinematics."""
+    if recording_suite(data_root) != "so101":
+        return states[:, :3]
+    import torch
+
+    from lerobot_rnd import so101
+
+    return so101.forward_kinematics(torch.as_tensor(states, dtype=torch.float64))[..., :3, 3].numpy()
 
 
 def goal_response(starts: np.ndarray, later: np.ndarray, goals: np.ndarray) -> dict:
@@ -54,17 +83,17 @@ def goal_response(starts: np.ndarray, later: np.ndarray, goals: np.ndarray) -> d
 
 
 def demo_goal_response(data_root: Path, goals_demo: np.ndarray, step: int) -> dict:
-    """`goal_response` of the demonstrations themselves at frame `step` (the hand position, state[:3]; the
-    gripper centre moves with it)."""
+    """`goal_response` of the demonstrations themselves at frame `step` (the hand position, `demo_hand_positions`;
+    the gripper centre moves with it)."""
     import pandas as pd
 
     frames = pd.concat([pd.read_parquet(f) for f in sorted((data_root / "data").glob("*/*.parquet"))])
     starts, later = [], []
     for _, ep in sorted(frames.groupby("episode_index"), key=lambda kv: kv[0]):
         ep = ep.sort_values("frame_index")
-        states = np.stack(ep["observation.state"].to_numpy())
-        starts.append(states[0, :3])
-        later.append(states[min(step, len(states) - 1), :3])
+        hand = demo_hand_positions(data_root, np.stack(ep["observation.state"].to_numpy()))
+        starts.append(hand[0])
+        later.append(hand[min(step, len(hand) - 1)])
     return goal_response(np.array(starts), np.array(later), goals_demo)
 
 
@@ -214,10 +243,22 @@ def main(argv=None) -> int:
     from lerobot_rnd.modeling_rnd import RnDPolicy
     from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
     from lerobot_rnd.sim.record import recorded_env_overrides
+    from lerobot_rnd.sim.so101_env import RnDSO101EnvConfig
 
     data = Path(a.data)
     settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
-    env_cfg = RnDMetaWorldEnvConfig(task=settings.get("task", "reach-v3"), **recorded_env_overrides(settings))
+    suite = recording_suite(data)
+    if suite not in ("metaworld", "so101"):
+        p.error(f"--data {data}: a {suite!r} recording; this script traces MetaWorld and SO-101 recordings")
+    if suite == "so101":
+        env_cfg = RnDSO101EnvConfig(task=settings["task"], **recorded_env_overrides(settings))
+        # the goal: the target for reach-target, the cube for pick-cube; the hand: MuJoCo's EE site
+        goal_of = (lambda e: e.target_pos()) if settings["task"] == "reach-target" else (lambda e: e.cube_pos())
+        hand_of = lambda e: e.ee_site_pos()
+    else:
+        env_cfg = RnDMetaWorldEnvConfig(task=settings.get("task", "reach-v3"), **recorded_env_overrides(settings))
+        goal_of = lambda e: e.raw_observation[-3:].copy()
+        hand_of = lambda e: e.tcp_center.copy()
     goals_demo = demo_goals(data)
     # as lerobot-eval: seed the global RNGs, then build the env, then the policy (a diffusion policy's sampling
     # noise comes from torch's global generator, so the same seed draws the same noise)
@@ -248,8 +289,8 @@ def main(argv=None) -> int:
 
         def record(env):  # after reset, then after every step (an env that is done may reset again later)
             if not goal_at_reset:
-                goal_at_reset.append(np.stack([e.unwrapped.raw_observation[-3:].copy() for e in env.envs]))
-            tcp_steps.append(np.stack([e.unwrapped.tcp_center.copy() for e in env.envs]))
+                goal_at_reset.append(np.stack([goal_of(e.unwrapped) for e in env.envs]))
+            tcp_steps.append(np.stack([hand_of(e.unwrapped) for e in env.envs]))
 
         with torch.no_grad():
             out = rollout(vec, policy, env_pre, env_post, pre, post, seeds=seeds, render_callback=record)

@@ -82,6 +82,20 @@ STATUS: dict[str, tuple[str, str]] = {
     "chunk_goal_response_so101_pick_rnd_ai.json": (CURRENT, "The same on the pick-cube R&D-AI checkpoint (frames 0, 8, "
                                                    "16, 32): shoulder pan slope 0.09 at frame 0, 0.72 at 8, 0.89 at "
                                                    "16; the first chunk barely depends on where the cube is."),
+    "chunk_goal_response_so101_reach_rnd_ai_image_only.json": (CURRENT, "The reach-target R&D-AI checkpoint sampled "
+                                                               "without its final action-space pass (the image-space "
+                                                               "prediction alone): shoulder pan slope -0.15 at frame "
+                                                               "0 and 0.21 at frame 8, against 0.20 and 0.77 with it: "
+                                                               "on the SO-101 the action head does what following "
+                                                               "there is."),
+    "trace_so101_reach_rnd_ai.json": (CURRENT, "Closed loop on validation seeds 100-119, the so101_random R&D-AI "
+                                       "reach-target checkpoint: 1/20; the gripper's displacement at step 30 does not "
+                                       "depend on the goal (slopes x -0.07, y 0.00, z -0.05; the demos 0.76-0.79) and "
+                                       "it ends on the table (median final height 7 mm, the targets are 4-15 cm up; "
+                                       "median miss 16 cm)."),
+    "trace_so101_reach_act.json": (CURRENT, "The same for the so101_random ACT reach-target checkpoint: 1/20; it "
+                                   "turns towards the goal (slopes x 0.23, y 0.32) but does not descend (z 0.02; "
+                                   "median final height 12 cm, median miss 8 cm)."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+import torch
 
 import benchmarks.chunk_goal_response as cgr
 
@@ -50,3 +51,38 @@ def test_runs_on_a_saved_policy_and_its_demos(toy_dataset_root, tmp_path):
     assert all(r["episodes"] == meta.total_episodes for r in result["rows"])
     assert len(result["rows"][0]["slope"]) == len(result["joint_names"]) == meta.features["action"]["shape"][0]
     assert result["n_obs_steps"] == policy.config.n_obs_steps and "chunk_goal_response.py" in result["command"]
+
+
+@pytest.mark.parametrize("still", [False, True])
+def test_still_history_and_sampler_steps_reach_the_policy(toy_dataset_root, tmp_path, monkeypatch, still):
+    """--still-history feeds the current frame as the past one (the state history the policy sees is constant);
+    without it the past frame differs. --policy-arg sets the sampler the policy is built with."""
+    from lerobot.policies.factory import make_pre_post_processors
+
+    from lerobot_rnd.modeling_rnd import RnDPolicy
+    from tests.helpers import make_policy
+
+    policy, meta = make_policy(toy_dataset_root, n_obs_steps=2)
+    pre, post = make_pre_post_processors(policy.config, dataset_stats=meta.stats)
+    ckpt = tmp_path / "ckpt"
+    for obj in (policy, pre, post):
+        obj.save_pretrained(ckpt)
+    seen = []
+    original = RnDPolicy.predict_action_chunk
+
+    def spy(self, batch, noise=None):
+        seen.append((batch["observation.state"].clone(), len(self.model.inference_timesteps)))
+        return original(self, batch, noise)
+
+    monkeypatch.setattr(RnDPolicy, "predict_action_chunk", spy)
+    out = tmp_path / "cgr.json"
+    argv = ["--policy-path", str(ckpt), "--dataset-root", str(toy_dataset_root), "--repo-id", "local/toy_reach",
+            "--frames", "3", "--draws", "1", "--policy-arg", "num_inference_steps=3", "--out", str(out)]  # fmt: skip
+    assert cgr.main(argv + (["--still-history"] if still else [])) == 0
+    states = torch.cat([s for s, _ in seen])  # (episodes, history 2, state dim)
+    assert states.shape[1] == 2
+    same = torch.isclose(states[:, 0], states[:, 1]).all(dim=-1)
+    assert bool(same.all()) if still else not bool(same.any())
+    assert {steps for _, steps in seen} == {3}
+    result = json.loads(out.read_text())
+    assert result["still_history"] is still and result["policy_args"] == ["num_inference_steps=3"]

@@ -108,3 +108,43 @@ def test_reanalyse_adds_the_ray_split_from_the_recordings_static_camera(tmp_path
     f = json.loads(trace.read_text())["static_camera_ray_error"]["failures"]
     assert f["episodes"] == 2 and f["median_across_ray"] == pytest.approx(0.15)
     assert f["median_along_ray"] == pytest.approx(0.02) and f["median_abs_along_ray"] == pytest.approx(0.03)
+
+
+def _so101_recording(tmp_path, task: str, placements: list) -> None:
+    (tmp_path / "meta").mkdir(exist_ok=True)
+    attempts = [{"placement": p, "success": True, "episode_index": i} for i, p in enumerate(placements)]
+    (tmp_path / "meta" / "rnd_recording.json").write_text(
+        json.dumps({"settings": {"suite": "so101", "task": task}, "attempts": attempts}))
+
+
+@pytest.mark.parametrize("task", ["reach-target", "pick-cube"])
+def test_so101_demo_goals_and_hands_are_where_mujoco_puts_them(tmp_path, task):
+    """SO-101 recordings: the goal is the target (reach) or the cube (pick) that MuJoCo places for the demo's
+    placement, and the hand position read from a joint state is MuJoCo's EE site for that state."""
+    import mujoco
+
+    from lerobot_rnd.sim.so101_env import RnDSO101Env
+
+    env = RnDSO101Env(task, observation_height=32, observation_width=32)
+    rng = np.random.default_rng(0)
+    placements = [env.placement_space.sample().tolist() for _ in range(3)]
+    _so101_recording(tmp_path, task, placements)
+    goals, states, hands = [], [], []
+    for p in placements:
+        env.reset(seed=0, options={"placement": p})
+        goals.append(env.target_pos() if task == "reach-target" else env.cube_pos())
+        for _ in range(3):
+            env.step(env.state() + rng.uniform(-15, 15, size=6))
+            mujoco.mj_forward(env.model, env.data)  # site positions of the joints now, not of the last substep's start
+            states.append(env.state())
+            hands.append(env.ee_site_pos())
+    env.close()
+    np.testing.assert_allclose(tr.demo_goals(tmp_path), np.array(goals), atol=2e-3)  # the cube settles a little
+    np.testing.assert_allclose(tr.demo_hand_positions(tmp_path, np.array(states)), np.array(hands), atol=1e-4)
+
+
+def test_metaworld_hands_are_the_states_first_three_numbers(tmp_path):
+    (tmp_path / "meta").mkdir()
+    (tmp_path / "meta" / "rnd_recording.json").write_text(json.dumps({"settings": {}, "attempts": []}))
+    states = np.arange(12.0).reshape(2, 6)
+    assert tr.demo_hand_positions(tmp_path, states).tolist() == [[0.0, 1.0, 2.0], [6.0, 7.0, 8.0]]
