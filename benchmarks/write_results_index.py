@@ -96,6 +96,21 @@ STATUS: dict[str, tuple[str, str]] = {
     "trace_so101_reach_act.json": (CURRENT, "The same for the so101_random ACT reach-target checkpoint: 1/20; it "
                                    "turns towards the goal (slopes x 0.23, y 0.32) but does not descend (z 0.02; "
                                    "median final height 12 cm, median miss 8 cm)."),
+    "chunk_goal_response_so101_reach_rnd_ai_chunk16.json": (CURRENT, "A validation run: R&D-AI reach-target trained "
+                                                             "with 16-step chunks (8 executed), otherwise as "
+                                                             "so101_random (`run_benchmark.py --suite so101 --scale "
+                                                             "cpu --demos 10 --steps 3000 --tasks reach-target "
+                                                             "--methods rnd_ai --train-only --train-arg "
+                                                             "rnd:--policy.chunk_size=16 --out "
+                                                             "outputs/validation/so101_chunk16`). On its demos its "
+                                                             "first chunk now follows the goal (shoulder pan slope "
+                                                             "1.22 at frame 0, sampling spread 0.6 degrees against "
+                                                             "1.2 with 8-step chunks)."),
+    "trace_so101_reach_rnd_ai_chunk16.json": (CURRENT, "That 16-step checkpoint in closed loop on validation seeds "
+                                               "100-119: still 1/20 and still blind to where the goal is across "
+                                               "(slopes x 0.05, y -0.04; z 0.28): fitting the demos' first chunk "
+                                               "did not make it generalise to new placements, so the SO-101 config "
+                                               "keeps 8-step chunks."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "
