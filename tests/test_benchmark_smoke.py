@@ -124,18 +124,28 @@ def test_dry_run_commands(tmp_path):
         assert "--seed=1000" in c and "--env.type=rnd_mw" in c and "--eval.n_episodes=2" in c
 
 
-def test_eval_only_skips_a_run_without_a_checkpoint_instead_of_failing_it(tmp_path):
+def _checkpoint(tmp_path, method: str, step: int) -> None:
+    """A saved checkpoint of `method`'s smoke run at `step`, with the training state lerobot-train writes."""
+    ckpt = tmp_path / "work" / "runs" / "random" / method / "reach-v3" / "n3" / "seed0" / "train" / "checkpoints"
+    (ckpt / f"{step:06d}" / "pretrained_model").mkdir(parents=True)
+    (ckpt / f"{step:06d}" / "training_state").mkdir()
+    (ckpt / f"{step:06d}" / "training_state" / "training_step.json").write_text(json.dumps({"step": step}))
+    (ckpt / "last").symlink_to(f"{step:06d}")
+
+
+def test_eval_only_evaluates_only_runs_trained_to_the_end(tmp_path):
     """--eval-only collects what is trained: a run never trained is left for later, not marked failed (it once
-    was, and results.md listed it as FAILED)."""
-    ckpt = tmp_path / "work" / "runs" / "random" / "act" / "reach-v3" / "n3" / "seed0" / "train" / "checkpoints"
-    (ckpt / "000002" / "pretrained_model").mkdir(parents=True)
-    (ckpt / "last").symlink_to("000002")
-    cmds = _dry_run(tmp_path, "--methods", "rnd_ai,act", "--eval-only")
+    was, and results.md listed it as FAILED), and so is a run still training (it once was evaluated at its last
+    checkpoint, part-way, and marked done)."""
+    _checkpoint(tmp_path, "act", 2)  # the smoke scale trains 2 steps
+    _checkpoint(tmp_path, "diffusion", 1)  # part-way
+    cmds = _dry_run(tmp_path, "--methods", "rnd_ai,act,diffusion", "--eval-only")
     ev = [c for c in cmds if "lerobot-eval" in c]
     assert not [c for c in cmds if "lerobot-train" in c]
     assert len(ev) == 1 and "/act/" in ev[0], ev
-    run = tmp_path / "work" / "runs" / "random" / "rnd_ai" / "reach-v3" / "n3" / "seed0" / "run.json"
-    assert not run.exists() or json.loads(run.read_text()).get("status") != "failed"
+    for method in ("rnd_ai", "diffusion"):
+        run = tmp_path / "work" / "runs" / "random" / method / "reach-v3" / "n3" / "seed0" / "run.json"
+        assert not run.exists() or json.loads(run.read_text()).get("status") not in ("failed", "done")
 
 
 def test_train_only_trains_and_leaves_the_evaluation_for_later(tmp_path):

@@ -39,6 +39,13 @@ DEMO_PLACEMENTS = {
 }  # fmt: skip
 
 
+def checkpoint_step(ckroot: Path) -> int:
+    """The training step of a run's last checkpoint (``ckroot/last``; lerobot-train saves it in the training state
+    beside the model), 0 without one."""
+    state = _read_json(ckroot / "last" / "training_state" / "training_step.json", {}) or {}
+    return int(state.get("step", 0))
+
+
 def unit_tasks(unit: str) -> list[str]:
     """The tasks of a training unit: one task, or the comma-separated tasks of a --multitask run."""
     return [t for t in unit.split(",") if t]
@@ -319,9 +326,7 @@ class Benchmark:
         ckroot = tdir / "checkpoints"
         while True:
             last = ckroot / "last"
-            step = 0
-            if last.exists():
-                step = int((_read_json(last / "training_state" / "training_step.json", {}) or {}).get("step", 0))
+            step = checkpoint_step(ckroot)
             if step >= a.steps:
                 break
             self._prune_checkpoints(ckroot)
@@ -341,9 +346,7 @@ class Benchmark:
             r = run_logged(argv, log, deadline=deadline, poll=poll, env=self.env(), dry_run=a.dry_run)
             if a.dry_run:
                 return
-            end_step = 0
-            if (ckroot / "last").exists():
-                end_step = int((_read_json(ckroot / "last" / "training_state" / "training_step.json", {}) or {}).get("step", 0))
+            end_step = checkpoint_step(ckroot)
             loop_s = (time.time() - r.marks["train_loop_start"]) if "train_loop_start" in r.marks else None
             if loop_s is not None:
                 loop_s = min(loop_s, r.wall_s)
@@ -587,8 +590,10 @@ class Benchmark:
         if st.get("status") == "failed" and not a.retry_failed:
             self.failed = True
             return
-        if a.eval_only and not (rdir / "train" / "checkpoints" / "last" / "pretrained_model").exists():
-            print(f"--eval-only: {method} / {task} / n{n} has no checkpoint yet; left for a later --resume", flush=True)
+        if a.eval_only and (trained := checkpoint_step(rdir / "train" / "checkpoints")) < a.steps:
+            # a run still training (or stopped part-way) must not be evaluated and marked done at its last checkpoint
+            print(f"--eval-only: {method} / {task} / n{n} is trained to step {trained} of {a.steps}; left for a later "
+                  "--resume", flush=True)  # fmt: skip
             return
         st.update(method=method, task=task, demos=n, seed=seed, protocol=a.protocol, scale=a.scale, suite=self.suite_name,
                   status="running", code_commit=st.get("code_commit") or git_commit())  # fmt: skip
