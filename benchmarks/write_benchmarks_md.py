@@ -605,24 +605,28 @@ def multitask_section(one_step: dict | None) -> list[str]:
 
 SO101_FOLDER = "so101_random"
 SO101_TASKS = ("reach-target", "pick-cube")
+SO101_DEMOS = (10, 20)
 
 
 def so101_section() -> list[str]:
-    """The simulated SO-101's success table (issue 34): one row per method, from the run JSON of SO101_FOLDER."""
+    """The simulated SO-101's success table (issue 34): one row per method, one column per task and number of demos
+    (10 always; 20 once a method has a finished run with 20), from the run JSON of SO101_FOLDER."""
     names = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}
-    rows = []
-    for method, name in names.items():
-        cells = {t: run_file_cells(SO101_FOLDER, method, (t,)).get(t) for t in SO101_TASKS}
-        rows.append(f"| {name} | " + " | ".join(cell(*c) if c else "not run yet" for c in cells.values()) + " |")
+    found = {(m, t, n): run_file_cells(SO101_FOLDER, m, (t,), demos=n).get(t)
+             for m in names for t in SO101_TASKS for n in SO101_DEMOS}  # fmt: skip
+    columns = [(t, n) for n in SO101_DEMOS for t in SO101_TASKS
+               if n == SO101_DEMOS[0] or any(found[(m, t, n)] for m in names)]  # fmt: skip
+    rows = [f"| {name} | " + " | ".join(cell(*found[(m, t, n)]) if found[(m, t, n)] else "not run yet"
+                                      for t, n in columns) + " |" for m, name in names.items()]  # fmt: skip
     return [
         "### Simulated SO-101 (joint-space arm, cameras measured by `lerobot-rnd-calibrate`)",
         "",
-        "10 random demos, 3,000 training steps, 50 test episodes from seed 1000 (Wilson 95% intervals); "
+        "Random demos, 3,000 training steps, 50 test episodes from seed 1000 (Wilson 95% intervals); "
         f"[benchmarks/results/{SO101_FOLDER}](../benchmarks/results/{SO101_FOLDER}/results.md), "
         "`policies_config/so101/`. What the failures show: [docs/SO101.md](SO101.md).",
         "",
-        "| method | " + " | ".join(SO101_TASKS) + " |",
-        "| --- | " + " | ".join("---" for _ in SO101_TASKS) + " |",
+        "| method | " + " | ".join(f"{t}, {n} demos" for t, n in columns) + " |",
+        "| --- | " + " | ".join("---" for _ in columns) + " |",
         *rows,
     ]
 

@@ -63,7 +63,8 @@ STATUS: dict[str, tuple[str, str]] = {
     "so101_random": (CURRENT, "Simulated SO-101 (issue 34), cameras measured by lerobot-rnd-calibrate, 10 random "
                      "demos, 3,000 steps, 50 test episodes from seed 1000: reach-target R&D-AI 3/50, ACT 5/50 (demos "
                      "re-recorded with the expert that keeps the wrist roll); pick-cube R&D-AI 0/50 (it reaches "
-                     "towards the cube, never lifts it), ACT not run yet; Diffusion Policy not run."),
+                     "towards the cube, never lifts it), ACT training; Diffusion Policy not run. 20 demos: "
+                     "reach-target R&D-AI 3/50, ACT not run yet."),
     "chunk_goal_response_so101_reach_rnd_ai.json": (CURRENT, "Open loop on its 10 reach-target demos, the so101_random "
                                                     "R&D-AI checkpoint: how much its action chunk follows each "
                                                     "demo's motion (slope 1) from frames 0, 8 and 16. At frame 0, "
@@ -111,6 +112,10 @@ STATUS: dict[str, tuple[str, str]] = {
                                                "(slopes x 0.05, y -0.04; z 0.28): fitting the demos' first chunk "
                                                "did not make it generalise to new placements, so the SO-101 config "
                                                "keeps 8-step chunks."),
+    "trace_so101_reach_rnd_ai_n20.json": (CURRENT, "The so101_random R&D-AI reach-target checkpoint trained on 20 "
+                                           "demos, closed loop on validation seeds 100-119: 1/20, still blind to "
+                                           "the goal (slopes x 0.03, y 0.07, z 0.12) and ending on the table "
+                                           "(median final height 8 mm): twice the demos did not change it."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "

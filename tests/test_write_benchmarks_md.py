@@ -182,5 +182,11 @@ def test_so101_section_reads_the_run_files_and_says_what_is_not_run(tmp_path, mo
     (runs / "rnd_ai__pick-cube__n10__seed0.json").write_text(json.dumps({"status": "failed", "eval_chunks": chunks}))
     monkeypatch.setattr(w, "RESULTS", tmp_path)
     table = "\n".join(w.so101_section())
+    assert "| method | reach-target, 10 demos | pick-cube, 10 demos |" in table  # no 20-demo run: no such column
     assert "| ACT | 3/10 (11-60%) | not run yet |" in table  # Wilson 95% for 3/10: 10.8-60.3%
     assert "| R&D-AI | not run yet | not run yet |" in table  # a failed run is no result
+    (runs / "rnd_ai__reach-target__n20__seed0.json").write_text(json.dumps({"status": "done", "eval_chunks": chunks}))
+    table = "\n".join(w.so101_section())
+    assert "| method | reach-target, 10 demos | pick-cube, 10 demos | reach-target, 20 demos |" in table
+    assert "| R&D-AI | not run yet | not run yet | 3/10 (11-60%) |" in table
+    assert "| ACT | 3/10 (11-60%) | not run yet | not run yet |" in table
