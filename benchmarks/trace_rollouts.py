@@ -36,12 +36,16 @@ sys.path.insert(0, str(REPO))
 from benchmarks.eval_train_placements import training_placements  # noqa: E402
 
 
+def recording_settings(data_root: Path) -> dict:
+    """The settings a recording was made with (`meta/rnd_recording.json`)."""
+    return json.loads((data_root / "meta" / "rnd_recording.json").read_text())["settings"]
+
+
 def recording_suite(data_root: Path) -> str:
-    """The suite a recording was made in ("metaworld", "so101", ...; `meta/rnd_recording.json`)."""
+    """The suite a recording was made in ("metaworld", "so101", ...)."""
     from lerobot_rnd.sim.record import recorded_setting
 
-    settings = json.loads((data_root / "meta" / "rnd_recording.json").read_text())["settings"]
-    return recorded_setting(settings, "suite")
+    return recorded_setting(recording_settings(data_root), "suite")
 
 
 def demo_goals(data_root: Path) -> np.ndarray:
@@ -49,8 +53,7 @@ def demo_goals(data_root: Path) -> np.ndarray:
     last three numbers; SO-101 reach-target, the target (x, y, z); SO-101 pick-cube, the cube's centre from its
     (x, y, yaw) placement."""
     placements = np.array(training_placements(data_root), dtype=np.float64)
-    settings = json.loads((data_root / "meta" / "rnd_recording.json").read_text())["settings"]
-    if recording_suite(data_root) == "so101" and settings["task"] == "pick-cube":
+    if recording_suite(data_root) == "so101" and recording_settings(data_root)["task"] == "pick-cube":
         from lerobot_rnd.sim.so101_scene import CUBE_HALF
 
         return np.concatenate([placements[:, :2], np.full((len(placements), 1), CUBE_HALF)], axis=1)
@@ -246,7 +249,7 @@ def main(argv=None) -> int:
     from lerobot_rnd.sim.so101_env import RnDSO101EnvConfig
 
     data = Path(a.data)
-    settings = json.loads((data / "meta" / "rnd_recording.json").read_text())["settings"]
+    settings = recording_settings(data)
     suite = recording_suite(data)
     if suite not in ("metaworld", "so101"):
         p.error(f"--data {data}: a {suite!r} recording; this script traces MetaWorld and SO-101 recordings")
