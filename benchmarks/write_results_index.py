@@ -63,7 +63,7 @@ STATUS: dict[str, tuple[str, str]] = {
     "so101_random": (CURRENT, "Simulated SO-101 (issue 34), cameras measured by lerobot-rnd-calibrate, 10 random "
                      "demos, 3,000 steps, 50 test episodes from seed 1000: reach-target R&D-AI 3/50, ACT 5/50 (demos "
                      "re-recorded with the expert that keeps the wrist roll); pick-cube R&D-AI 0/50 (it reaches "
-                     "towards the cube, never lifts it), ACT training; Diffusion Policy not run. 20 demos: "
+                     "towards the cube, never lifts it), ACT 1/50; Diffusion Policy not run. 20 demos: "
                      "reach-target R&D-AI 3/50, ACT not run yet."),
     "chunk_goal_response_so101_reach_rnd_ai.json": (CURRENT, "Open loop on its 10 reach-target demos, the so101_random "
                                                     "R&D-AI checkpoint: how much its action chunk follows each "
