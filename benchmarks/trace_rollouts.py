@@ -16,7 +16,8 @@ number for the demonstrations. Any LeRobot policy type loads (R&D, ACT, Diffusio
 
 Seeds default to the validation seeds 100-119; the benchmark's test seeds (1000-) are refused unless
 `--allow-test-seeds`, so a diagnosis cannot be tuned on them. `--policy-arg FIELD=VALUE` changes a sampler
-setting of the checkpoint's config (e.g. `num_inference_steps=1`). Every trace also splits each final miss into
+setting of the checkpoint's config (e.g. `num_inference_steps=1`; `FIELD.KEY=VALUE` one key of a dict field, e.g.
+`action_adapter.ik_orientation_weight=0.1`). Every trace also splits each final miss into
 the part along the recording's static camera's ray through the goal (depth as that camera sees it) and the part
 across it (`static_camera_ray_error`); `--reanalyse` adds that split to a trace written before it existed.
 """
@@ -136,30 +137,46 @@ def ray_error_summary(episodes: list[dict], cam_pos: np.ndarray) -> dict:
     return out
 
 
+def _typed_value(pair: str, key: str, current, text: str):
+    """`text` cast to the type of `current` (bool: true/false only); a ValueError names the pair."""
+    if isinstance(current, bool):
+        if text.lower() not in ("true", "false"):
+            raise ValueError(f"--policy-arg {pair!r}: {key} is a bool; write true or false")
+        return text.lower() == "true"
+    if isinstance(current, (int, float, str)):
+        try:
+            return type(current)(text)
+        except ValueError:
+            raise ValueError(f"--policy-arg {pair!r}: {key} needs a {type(current).__name__}") from None
+    raise ValueError(f"--policy-arg {pair!r}: {key} ({type(current).__name__}) cannot be set here")
+
+
 def parse_policy_args(config, pairs: list[str]):
     """A copy of a loaded policy config with `KEY=VALUE` overrides, each cast to the type of the field's current
     value (bool accepts true/false only) and checked by the config's own validation (`dataclasses.replace`
-    runs `__post_init__`). Unknown fields and unparsable or invalid values raise ValueError naming them."""
+    runs `__post_init__`). `FIELD.KEY=VALUE` sets one existing key of a dict field, e.g.
+    `action_adapter.ik_orientation_weight=0.1` (an R&D checkpoint's IK weight, used only at inference). Unknown
+    fields or keys and unparsable or invalid values raise ValueError naming them."""
+    import copy
     import dataclasses
 
     overrides = {}
     for pair in pairs:
         key, sep, text = pair.partition("=")
-        if not sep or not hasattr(config, key):
+        name, dot, sub = key.partition(".")
+        if not sep or not hasattr(config, name):
             raise ValueError(f"--policy-arg {pair!r}: expected FIELD=VALUE with a field of {type(config).__name__}")
-        current = getattr(config, key)
-        if isinstance(current, bool):
-            if text.lower() not in ("true", "false"):
-                raise ValueError(f"--policy-arg {pair!r}: {key} is a bool; write true or false")
-            value = text.lower() == "true"
-        elif isinstance(current, (int, float, str)):
-            try:
-                value = type(current)(text)
-            except ValueError:
-                raise ValueError(f"--policy-arg {pair!r}: {key} needs a {type(current).__name__}") from None
+        if dot:
+            table = overrides.get(name, getattr(config, name))
+            if not isinstance(table, dict) or sub not in table:
+                known = sorted(table) if isinstance(table, dict) else []
+                raise ValueError(f"--policy-arg {pair!r}: {name} has no key {sub!r}"
+                                 + (f" (keys: {', '.join(known)})" if known else f" ({name} is not a dict)"))
+            table = copy.deepcopy(table)
+            table[sub] = _typed_value(pair, key, table[sub], text)
+            overrides[name] = table
         else:
-            raise ValueError(f"--policy-arg {pair!r}: {key} ({type(current).__name__}) cannot be set here")
-        overrides[key] = value
+            overrides[key] = _typed_value(pair, key, getattr(config, key), text)
     return dataclasses.replace(config, **overrides) if overrides else config
 
 
@@ -222,7 +239,8 @@ def main(argv=None) -> int:
     p.add_argument("--response-step", type=int, default=30, help="step (a multiple of 10) at which the gripper's "
                    "displacement is compared with the goal's offset, for the policy and its demos (default 30)")
     p.add_argument("--policy-arg", action="append", default=[], metavar="FIELD=VALUE",
-                   help="override a sampler setting of the loaded config, e.g. num_inference_steps=1 (repeatable)")
+                   help="override a setting of the loaded config, e.g. num_inference_steps=1, or one key of a dict "
+                   "field, e.g. action_adapter.ik_orientation_weight=0.1 (repeatable)")
     p.add_argument("--reanalyse", action="store_true", help="only add the static-camera ray split to the existing "
                    "--out JSON (no rollouts)")
     p.add_argument("--out", required=True)

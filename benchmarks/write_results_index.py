@@ -116,6 +116,11 @@ STATUS: dict[str, tuple[str, str]] = {
                                            "demos, closed loop on validation seeds 100-119: 1/20, still blind to "
                                            "the goal (slopes x 0.03, y 0.07, z 0.12) and ending on the table "
                                            "(median final height 8 mm): twice the demos did not change it."),
+    "trace_so101_reach_rnd_ai_ikw0.1.json": (CURRENT, "The so101_random R&D-AI reach-target checkpoint (10 demos) "
+                                              "with IK orientation weight 0.1 instead of 1 (set at inference only), "
+                                              "closed loop on validation seeds 100-119: 0/20, slopes about 0, ending "
+                                              "on the table (median 7 mm), the same misses as weight 1: the IK's "
+                                              "trade of position for unreachable rotation is not why it drifts."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "

@@ -93,6 +93,20 @@ def test_policy_args_are_typed_by_the_field_and_validated_by_the_config():
         tr.parse_policy_args(cfg, ["num_inference_steps=0"])
 
 
+def test_policy_args_set_one_key_of_a_dict_field_and_leave_the_rest():
+    from lerobot_rnd.configuration_rnd import RnDConfig
+
+    adapter = {"type": "joint_positions", "ik_orientation_weight": 1.0, "ik_max_iterations": 100}
+    cfg = RnDConfig(action_adapter=adapter)
+    new = tr.parse_policy_args(cfg, ["action_adapter.ik_orientation_weight=0.1", "action_adapter.ik_max_iterations=7"])
+    assert new.action_adapter == {"type": "joint_positions", "ik_orientation_weight": 0.1, "ik_max_iterations": 7}
+    assert cfg.action_adapter["ik_orientation_weight"] == 1.0  # the loaded config is left as it was
+    for bad, named in [("action_adapter.no_such_key=1", "no_such_key"), ("num_inference_steps.x=1", "not a dict"),
+                       ("action_adapter.ik_max_iterations=1.5", "int")]:
+        with pytest.raises(ValueError, match=named):
+            tr.parse_policy_args(cfg, [bad])
+
+
 def test_reanalyse_adds_the_ray_split_from_the_recordings_static_camera(tmp_path):
     (tmp_path / "meta").mkdir()
     (tmp_path / "meta" / "rnd_embodiment.json").write_text(json.dumps({"cameras": {
