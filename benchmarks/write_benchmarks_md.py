@@ -631,6 +631,43 @@ def so101_section() -> list[str]:
     ]
 
 
+PANDA_SPATIAL_FOLDER = "panda_spatial"
+PANDA_SPATIAL_TASKS = ("lift-cube", "push-block")
+PANDA_SPATIAL_DEMOS = (2, 4, 8, 16)
+
+
+def panda_spatial_section() -> list[str]:
+    """The Panda spatial-protocol table (issue 33): one row per method, one column per task and number of
+    furthest-point demos that some method has finished, from the run JSON of PANDA_SPATIAL_FOLDER; then the
+    harness's heat maps of that folder. Empty when no run has finished."""
+    names = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}
+    found = {(m, t, n): run_file_cells(PANDA_SPATIAL_FOLDER, m, (t,), demos=n).get(t)
+             for m in names for t in PANDA_SPATIAL_TASKS for n in PANDA_SPATIAL_DEMOS}  # fmt: skip
+    columns = [(t, n) for t in PANDA_SPATIAL_TASKS for n in PANDA_SPATIAL_DEMOS
+               if any(found[(m, t, n)] for m in names)]  # fmt: skip
+    if not columns:
+        return []
+    rows = [f"| {name} | " + " | ".join(cell(*found[(m, t, n)]) if found[(m, t, n)] else "not run yet"
+                                      for t, n in columns) + " |" for m, name in names.items()]  # fmt: skip
+    folder = RESULTS / PANDA_SPATIAL_FOLDER
+    maps = [f"[{t}](../benchmarks/results/{PANDA_SPATIAL_FOLDER}/heatmap_{t}.png)" for t in PANDA_SPATIAL_TASKS
+            if (folder / f"heatmap_{t}.png").exists()]  # fmt: skip
+    return [
+        "### Panda, spatial protocol (6-DoF gripper, furthest-point demos)",
+        "",
+        "Demos by furthest-point sampling over the object's (x, y, yaw) from the centre of its range; evaluation on "
+        "a 3 x 3 x 3 grid of cell centres over x, y and yaw (27 episodes per cell of the table, Wilson 95% "
+        "intervals); 3,000 training steps at batch 8; `policies_config/panda/`; "
+        f"[benchmarks/results/{PANDA_SPATIAL_FOLDER}](../benchmarks/results/{PANDA_SPATIAL_FOLDER}/"
+        f"{'results.md' if (folder / 'results.md').exists() else 'runs/'})"
+        + (f"; heat maps with the training placements marked: {', '.join(maps)}" if maps else "") + ".",
+        "",
+        "| method | " + " | ".join(f"{t}, {n} demos" for t, n in columns) + " |",
+        "| --- | " + " | ".join("---" for _ in columns) + " |",
+        *rows,
+    ]
+
+
 def current_block() -> list[str]:
     """The generated opening of docs/BENCHMARKS.md: the current results of the shipped configs."""
     one_step = _load(RESULTS / "one_step_sampling_test.json")
@@ -647,6 +684,9 @@ def current_block() -> list[str]:
         parts += multitask_section(one_step) + [""]
     if (RESULTS / SO101_FOLDER / "runs").exists():
         parts += so101_section() + [""]
+    panda = panda_spatial_section()
+    if panda:
+        parts += panda + [""]
     train_steps = [(p.name, _load(p)) for p in sorted(RESULTS.glob("train_step_cpu*.json"))]
     inference = RESULTS / "inference_cpu_tier_avx512.json"
     parts += cost_section(train_steps, (inference.name, _load(inference)) if inference.exists() else None) + [""]

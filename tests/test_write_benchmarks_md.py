@@ -190,3 +190,24 @@ def test_so101_section_reads_the_run_files_and_says_what_is_not_run(tmp_path, mo
     assert "| method | reach-target, 10 demos | pick-cube, 10 demos | reach-target, 20 demos |" in table
     assert "| R&D-AI | not run yet | not run yet | 3/10 (11-60%) |" in table
     assert "| ACT | 3/10 (11-60%) | not run yet | not run yet |" in table
+
+
+def test_panda_spatial_section_shows_only_finished_cells_and_the_heat_maps_that_exist(tmp_path, monkeypatch):
+    import json
+
+    import benchmarks.write_benchmarks_md as w
+
+    monkeypatch.setattr(w, "RESULTS", tmp_path)
+    assert w.panda_spatial_section() == []  # nothing finished: no section
+    runs = tmp_path / w.PANDA_SPATIAL_FOLDER / "runs"
+    runs.mkdir(parents=True)
+    chunks = {"0:10": {"successes": [True] * 2 + [False] * 8}, "10:20": {"successes": [False] * 10},
+              "20:27": {"successes": [True] + [False] * 6}}  # 3 of a 27-cell grid
+    (runs / "rnd_ai__lift-cube__n8__seed0.json").write_text(json.dumps({"status": "done", "eval_chunks": chunks}))
+    (runs / "act__lift-cube__n2__seed0.json").write_text(json.dumps({"status": "training", "eval_chunks": {}}))
+    text = "\n".join(w.panda_spatial_section())
+    assert "| method | lift-cube, 8 demos |" in text  # the unfinished 2-demo run makes no column
+    assert "| R&D-AI | 3/27 (4-28%) |" in text  # Wilson 95% for 3/27: 3.9-28.1%
+    assert "| ACT | not run yet |" in text and "heat maps" not in text
+    (tmp_path / w.PANDA_SPATIAL_FOLDER / "heatmap_lift-cube.png").write_bytes(b"png")
+    assert "heatmap_lift-cube.png" in "\n".join(w.panda_spatial_section())
