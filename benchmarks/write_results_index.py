@@ -136,7 +136,7 @@ STATUS: dict[str, tuple[str, str]] = {
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
     "panda_spatial": (CURRENT, "Issue 33, in progress: Panda push-block, spatial protocol (furthest-point demos from "
                       "the centre, 27-cell x/y/yaw grid), 3,000 steps; so far push-block R&D-AI with 2 demos: 0/27; lift-cube "
-                      "R&D-AI with 8 demos: 2/27, ACT training."),
+                      "with 8 demos: R&D-AI 2/27, ACT 3/27, each only at the centre demo's (x, y) (heat map)."),
     # ---- archived: superseded or exploratory ----
     "so101_reach_wrist_spin": (ARCHIVED, "R&D-AI on SO-101 reach-target (10 demos, measured cameras, 3,000 steps): "
                                "0/50. Superseded: the scripted expert rolled the wrist far in every "
