@@ -97,6 +97,23 @@ def test_the_mean_bar_carries_the_pooled_interval_of_the_three_tasks(tmp_path):
     assert (tmp_path / "bars.png").stat().st_size > 1000
 
 
+def test_the_plots_legend_lists_runs_that_only_an_earlier_panel_shows(tmp_path):
+    # the Panda spatial folder once had ACT and R&D-AI only on lift-cube (first panel) and R&D-AI n2 only on
+    # push-block (last panel): the legend, taken from the last panel, named only "R&D-AI (n2, s0)"
+    res = _fake_results(tmp_path)
+    proto = next(r for r in res["runs"] if r["method"] == "rnd_ai")
+    curve = [[50, 1.0], [100, 0.5]]
+    res["runs"] = [dict(proto, method="rnd_ai", task="lift-cube", demos=8, loss_curve=curve),
+                   dict(proto, method="act", task="lift-cube", demos=8, loss_curve=curve),
+                   dict(proto, method="rnd_ai", task="push-block", demos=2, loss_curve=curve)]  # fmt: skip
+    res["benchmark"].update(tasks=["lift-cube", "push-block"], demos=[2, 8], methods=["rnd_ai", "act"])
+    assert reports.plot_loss_curves(res, tmp_path / "loss.png") == ["R&D-AI (n8, s0)", "ACT (n8, s0)",
+                                                                    "R&D-AI (n2, s0)"]  # fmt: skip
+    assert reports.plot_success_vs_demos(res, tmp_path / "demos.png") == ["R&D-AI", "ACT"]
+    res["runs"] = res["runs"][1:2]  # ACT only, on the first panel
+    assert reports.plot_success_vs_demos(res, tmp_path / "demos.png") == ["ACT"]
+
+
 def _dry_run(tmp_path, *extra):
     out = subprocess.run(
         [sys.executable, str(SCRIPT), "--scale", "smoke", "--out", str(tmp_path / "out"),

@@ -217,7 +217,9 @@ def _mpl():
     return plt
 
 
-def plot_success_vs_demos(res: dict, path: Path) -> None:
+def plot_success_vs_demos(res: dict, path: Path) -> list[str]:
+    """Success against demo count with Wilson 95% bars, one panel per task (and the average), one colour per
+    method in every panel; returns the legend's labels."""
     plt = _mpl()
     b, runs = res["benchmark"], res["runs"]
     panels = list(b["tasks"]) + (["average"] if len(b["tasks"]) > 1 else [])
@@ -235,7 +237,7 @@ def plot_success_vs_demos(res: dict, path: Path) -> None:
                 lo.append(max(0.0, 100 * (s["rate"] - s["lo"])))
                 hi.append(max(0.0, 100 * (s["hi"] - s["rate"])))
             if xs:
-                ax.errorbar(xs, ys, yerr=[lo, hi], marker="o", capsize=3, label=METHODS[m][1],
+                ax.errorbar(xs, ys, yerr=[lo, hi], marker="o", capsize=3, label=METHODS[m][1], color=f"C{j}",
                             linestyle="-" if len(xs) > 1 else "none")  # fmt: skip
         ax.set_title(panel)
         ax.set_xlabel("demonstrations")
@@ -243,8 +245,7 @@ def plot_success_vs_demos(res: dict, path: Path) -> None:
         ax.set_ylim(-5, 105)
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("success rate (%), Wilson 95%")
-    if axes[0][-1].get_legend_handles_labels()[0]:
-        axes[0][-1].legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    labels = _legend_of_all_panels(axes[0], fontsize=8)
     title = f"{b['scale']} scale, {b['protocol']} protocol"
     if b["scale"] == "smoke":
         title += " (pipeline check, not a result)"
@@ -252,6 +253,20 @@ def plot_success_vs_demos(res: dict, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    return labels
+
+
+def _legend_of_all_panels(axes, fontsize: int) -> list[str]:
+    """One legend, right of the last panel, listing every label drawn in any panel once (a method or run that only
+    one panel shows still gets its entry); returns the labels in legend order."""
+    entries: dict[str, object] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            entries.setdefault(label, handle)
+    if entries:
+        axes[-1].legend(list(entries.values()), list(entries), fontsize=fontsize, loc="upper left",
+                        bbox_to_anchor=(1.02, 1.0))  # fmt: skip
+    return list(entries)
 
 
 def success_bars(res: dict) -> tuple[list[str], dict[str, list[tuple[int, dict]]]]:
@@ -304,29 +319,36 @@ def plot_success_per_task(res: dict, path: Path) -> None:
     plt.close(fig)
 
 
-def plot_loss_curves(res: dict, path: Path) -> None:
-    """Training loss against step, one panel per task, one line per method (each method's own loss)."""
+def plot_loss_curves(res: dict, path: Path) -> list[str]:
+    """Training loss against step, one panel per task, one line per run (each method's own loss): a colour per
+    method and a line style per demo count, the same in every panel; returns the legend's labels."""
     plt = _mpl()
     b, runs = res["benchmark"], res["runs"]
     tasks = [t for t in b["tasks"] if any(r.get("loss_curve") and r["task"] == t for r in runs)]
     if not tasks:
-        return
+        return []
+    methods = list(b["methods"])
+    demo_counts = sorted({r["demos"] for r in runs})
+    styles = ["-", "--", ":", "-."]
     fig, axes = plt.subplots(1, len(tasks), figsize=(4.2 * len(tasks), 3.4), squeeze=False)
     for ax, task in zip(axes[0], tasks, strict=True):
         for r in runs:
             if r["task"] != task or not r.get("loss_curve"):
                 continue
             steps, losses = zip(*r["loss_curve"])
-            ax.plot(steps, losses, label=f"{METHODS[r['method']][1]} (n{r['demos']}, s{r['seed']})")
+            ax.plot(steps, losses, label=f"{METHODS[r['method']][1]} (n{r['demos']}, s{r['seed']})",
+                    color=f"C{methods.index(r['method']) if r['method'] in methods else len(methods)}",
+                    linestyle=styles[demo_counts.index(r["demos"]) % len(styles)])  # fmt: skip
         ax.set_yscale("log")
         ax.set_title(task, fontsize=9)
         ax.set_xlabel("training step")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("training loss (each method's own)")
-    axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.02, 1.0))
+    labels = _legend_of_all_panels(axes[0], fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    return labels
 
 
 def plot_heatmap(res: dict, task: str, path: Path) -> None:
