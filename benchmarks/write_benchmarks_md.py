@@ -603,6 +603,26 @@ def multitask_section(one_step: dict | None) -> list[str]:
     return lines
 
 
+TABLE_METHODS = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}
+
+
+def method_by_run_table(folder: str, columns: list[tuple[str, int]], keep) -> list[str]:
+    """A markdown table of one results folder's one-task runs: a row per method of TABLE_METHODS, a column per
+    (task, demos) of `columns` for which `keep(task, demos, finished)` holds (`finished`: some method has a
+    finished run there); "not run yet" where a method has none. [] when no column is kept."""
+    found = {(m, t, n): run_file_cells(folder, m, (t,), demos=n).get(t) for m in TABLE_METHODS for t, n in columns}
+    columns = [(t, n) for t, n in columns if keep(t, n, any(found[(m, t, n)] for m in TABLE_METHODS))]
+    if not columns:
+        return []
+    rows = [f"| {name} | " + " | ".join(cell(*found[(m, t, n)]) if found[(m, t, n)] else "not run yet"
+                                      for t, n in columns) + " |" for m, name in TABLE_METHODS.items()]  # fmt: skip
+    return [
+        "| method | " + " | ".join(f"{t}, {n} demos" for t, n in columns) + " |",
+        "| --- | " + " | ".join("---" for _ in columns) + " |",
+        *rows,
+    ]
+
+
 SO101_FOLDER = "so101_random"
 SO101_TASKS = ("reach-target", "pick-cube")
 SO101_DEMOS = (10, 20)
@@ -611,13 +631,8 @@ SO101_DEMOS = (10, 20)
 def so101_section() -> list[str]:
     """The simulated SO-101's success table (issue 34): one row per method, one column per task and number of demos
     (10 always; 20 once a method has a finished run with 20), from the run JSON of SO101_FOLDER."""
-    names = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}
-    found = {(m, t, n): run_file_cells(SO101_FOLDER, m, (t,), demos=n).get(t)
-             for m in names for t in SO101_TASKS for n in SO101_DEMOS}  # fmt: skip
-    columns = [(t, n) for n in SO101_DEMOS for t in SO101_TASKS
-               if n == SO101_DEMOS[0] or any(found[(m, t, n)] for m in names)]  # fmt: skip
-    rows = [f"| {name} | " + " | ".join(cell(*found[(m, t, n)]) if found[(m, t, n)] else "not run yet"
-                                      for t, n in columns) + " |" for m, name in names.items()]  # fmt: skip
+    columns = [(t, n) for n in SO101_DEMOS for t in SO101_TASKS]
+    table = method_by_run_table(SO101_FOLDER, columns, keep=lambda t, n, finished: n == SO101_DEMOS[0] or finished)
     return [
         "### Simulated SO-101 (joint-space arm, cameras measured by `lerobot-rnd-calibrate`)",
         "",
@@ -625,9 +640,7 @@ def so101_section() -> list[str]:
         f"[benchmarks/results/{SO101_FOLDER}](../benchmarks/results/{SO101_FOLDER}/results.md), "
         "`policies_config/so101/`. What the failures show: [docs/SO101.md](SO101.md).",
         "",
-        "| method | " + " | ".join(f"{t}, {n} demos" for t, n in columns) + " |",
-        "| --- | " + " | ".join("---" for _ in columns) + " |",
-        *rows,
+        *table,
     ]
 
 
@@ -640,15 +653,10 @@ def panda_spatial_section() -> list[str]:
     """The Panda spatial-protocol table (issue 33): one row per method, one column per task and number of
     furthest-point demos that some method has finished, from the run JSON of PANDA_SPATIAL_FOLDER; then the
     harness's heat maps of that folder. Empty when no run has finished."""
-    names = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}
-    found = {(m, t, n): run_file_cells(PANDA_SPATIAL_FOLDER, m, (t,), demos=n).get(t)
-             for m in names for t in PANDA_SPATIAL_TASKS for n in PANDA_SPATIAL_DEMOS}  # fmt: skip
-    columns = [(t, n) for t in PANDA_SPATIAL_TASKS for n in PANDA_SPATIAL_DEMOS
-               if any(found[(m, t, n)] for m in names)]  # fmt: skip
-    if not columns:
+    columns = [(t, n) for t in PANDA_SPATIAL_TASKS for n in PANDA_SPATIAL_DEMOS]
+    table = method_by_run_table(PANDA_SPATIAL_FOLDER, columns, keep=lambda t, n, finished: finished)
+    if not table:
         return []
-    rows = [f"| {name} | " + " | ".join(cell(*found[(m, t, n)]) if found[(m, t, n)] else "not run yet"
-                                      for t, n in columns) + " |" for m, name in names.items()]  # fmt: skip
     folder = RESULTS / PANDA_SPATIAL_FOLDER
     maps = [f"[{t}](../benchmarks/results/{PANDA_SPATIAL_FOLDER}/heatmap_{t}.png)" for t in PANDA_SPATIAL_TASKS
             if (folder / f"heatmap_{t}.png").exists()]  # fmt: skip
@@ -662,9 +670,7 @@ def panda_spatial_section() -> list[str]:
         f"{'results.md' if (folder / 'results.md').exists() else 'runs/'})"
         + (f"; heat maps with the training placements marked: {', '.join(maps)}" if maps else "") + ".",
         "",
-        "| method | " + " | ".join(f"{t}, {n} demos" for t, n in columns) + " |",
-        "| --- | " + " | ".join("---" for _ in columns) + " |",
-        *rows,
+        *table,
     ]
 
 
