@@ -11,9 +11,12 @@ tuned on the benchmark's test set.
 
     python benchmarks/eval_train_placements.py --methods rnd_ai,act --tasks reach-v3 \
         --out benchmarks/results/cpu/train_placements.json
+    python benchmarks/eval_train_placements.py --suite panda --protocol spatial --tasks lift-cube --demos 8 \
+        --work outputs/benchmark/panda_spatial --out benchmarks/results/panda_spatial/train_placements_lift-cube_n8.json
 
-Runs are read from the CPU benchmark's work dir (`outputs/benchmark/cpu`, random protocol, 10 demos, seed 0);
-an evaluation whose `eval_info.json` exists is not repeated. MetaWorld's reach reward is 10 inside the 5 cm
+Runs are read from a benchmark's work dir (default `outputs/benchmark/cpu`, random protocol, 10 demos, seed 0);
+an evaluation whose `eval_info.json` exists is not repeated. The demos' own actions are replayed on MetaWorld only
+(the Panda recorder keeps only attempts whose expert succeeded). MetaWorld's reach reward is 10 inside the 5 cm
 success radius and falls off with the distance beyond it, so a max reward of 9-9.99 means "came close".
 """
 
@@ -29,6 +32,7 @@ sys.path.insert(0, str(REPO))
 from benchmarks.harness.files import _read_json, _rel, _write_json  # noqa: E402
 from benchmarks.harness.grid_eval import grid_eval_argv  # noqa: E402
 from benchmarks.harness.reports import wilson_interval  # noqa: E402
+from benchmarks.harness.scales import SUITES
 from lerobot_rnd.sim.record import recorded_env_args  # noqa: E402
 
 
@@ -73,6 +77,11 @@ def replay_demos(dataset_root: Path, task: str) -> list[dict]:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--suite", default="metaworld", choices=["metaworld", "panda"])
+    p.add_argument("--protocol", default="random", choices=["random", "spatial"],
+                   help="the benchmark's protocol: its datasets' placements and its work dir's runs/<protocol>")
+    p.add_argument("--episode-length", type=int, default=None,
+                   help="default: the suite's CPU-scale episode length (MetaWorld 300, Panda 120), as the benchmark")
     p.add_argument("--methods", default="rnd_ai,act")
     p.add_argument("--tasks", default="reach-v3")
     p.add_argument("--work", default="outputs/benchmark/cpu", help="the CPU benchmark's work dir")
@@ -86,15 +95,19 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="benchmarks/results/cpu/train_placements.json")
     a = p.parse_args(argv)
     work, data = (REPO / a.work).resolve(), (REPO / a.data).resolve()
+    suite = SUITES[a.suite]
+    episode_length = a.episode_length or suite["scales"].get("cpu", {}).get("episode_length", 300)
+    placements_mode = suite["fps_mode"] if a.protocol == "spatial" else "random"
     rows, demos = [], {}
     for task in a.tasks.split(","):
-        root = data / f"mw_{task}_random_s{a.record_seed}_n{a.demos}"
+        root = data / f"{suite['dataset_prefix']}_{task}_{placements_mode}_s{a.record_seed}_n{a.demos}"
         placements = training_placements(root)
         env_args = recorded_env_args((_read_json(root / "meta" / "rnd_recording.json") or {}).get("settings") or {})
-        demos[task] = replay_demos(root, task)
+        if a.suite == "metaworld":
+            demos[task] = replay_demos(root, task)
         runs = []
         for method in a.methods.split(","):
-            run = work / "runs" / "random" / method / task / f"n{a.demos}" / f"seed{a.seed}"
+            run = work / "runs" / a.protocol / method / task / f"n{a.demos}" / f"seed{a.seed}"
             ckpt = run / "train" / "checkpoints" / a.checkpoint / "pretrained_model"
             runs.append((method, ckpt, run / f"train_placements_{a.checkpoint}"))
         for spec in a.extra:
@@ -106,7 +119,8 @@ def main(argv=None) -> int:
                 print(f"skip {method} / {task}: no checkpoint at {_rel(ckpt)}")
                 continue
             pl_file = out_dir / "placements.json"
-            argv_eval = grid_eval_argv(ckpt, "cpu", task, 300, 10, 0, pl_file, out_dir, env_args=env_args)
+            argv_eval = grid_eval_argv(ckpt, "cpu", task, episode_length, 10, 0, pl_file, out_dir, env_args=env_args,
+                                       env_type=suite["env_type"])  # fmt: skip
             if not (out_dir / "eval_info.json").exists():
                 _write_json(pl_file, placements)
                 print(f"evaluating {method} / {task} on its {len(placements)} training placements ...", flush=True)
