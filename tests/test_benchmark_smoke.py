@@ -298,6 +298,32 @@ def test_a_committed_run_result_is_skipped_on_a_fresh_work_dir(tmp_path):
     assert runs[0]["status"] == "done" and runs[0]["successes"] == 1 and runs[0]["loss_curve"] == [[1, 0.5], [2, 0.4]]
 
 
+def test_a_finished_runs_loss_curve_is_read_again_from_its_train_log(tmp_path):
+    """A run finished before the log parser learned resumed invocations keeps a curve shifted past the last step;
+    collecting it again reads the curve from the work dir's train.log (and leaves the rest of the run alone)."""
+    a = cli.parse_args(["--scale", "smoke", "--methods", "act", "--out", str(tmp_path / "o"), "--log-freq", "1",
+                       "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip
+    b = Benchmark(a)
+    stale = [[1, 0.5], [2, 0.4], [5, 0.3], [6, 0.2]]  # resumed at 2 of 4, counted from the printed '5'
+    st = {"status": "done", "method": "act", "task": "reach-v3", "demos": 3, "seed": 0, "loss_curve": stale,
+          "eval_chunks": {"0:2": {"successes": [True, False], "wall_s": 1.0, "dir": "x"}}}  # fmt: skip
+    path = b.result_path("act", "reach-v3", 3, 0)
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps(st))
+    rdir = b.run_dir("act", "reach-v3", 3, 0)
+    rdir.mkdir(parents=True)
+    (rdir / "train.log").write_text(
+        "$ lerobot-train\ncfg.steps=4 (4)\nTraining:   0%|  | 0/4 [00:00]\nstep:1 smpl:8 loss:0.5\nstep:2 smpl:8 loss:0.4\n"
+        "$ lerobot-train --resume=true\ncfg.steps=4 (4)\nTraining:   0%|  | 0/2 [00:00]\nstep:5 smpl:8 loss:0.3\n"
+        "step:6 smpl:8 loss:0.2\n"
+    )
+    b.train = b.evaluate = None  # a finished run is neither trained nor evaluated again
+    b.run_one("act", "reach-v3", 3, 0)
+    again = json.loads(path.read_text())
+    assert again["loss_curve"] == [[1, 0.5], [2, 0.4], [3, 0.3], [4, 0.2]]
+    assert again["eval_chunks"] == st["eval_chunks"] and again["status"] == "done"
+
+
 def _source_folder(folder: Path, steps: int, successes: dict[str, int]) -> None:
     """A results folder as another benchmark leaves it: results.json (settings) and runs/<run>.json."""
     (folder / "runs").mkdir(parents=True)

@@ -34,6 +34,21 @@ def test_loss_curve_restarts_its_count_at_each_invocation_and_keeps_the_last_los
     assert curve[500] == 1.0 and curve[600] == 2.0 and curve[900] == 2.0
 
 
+def test_a_resumed_invocation_counts_from_the_step_it_resumed_at():
+    # the Panda lift-cube 4-demo run: killed at step 1,950, resumed from checkpoint 1,500 of 3,000. LeRobot prints
+    # 'step:2K' at 1,550, so anchoring on the printed value put the resumed losses at 2,000-3,450
+    def lines(steps, total, loss):
+        return "".join(f"Training:   3%|3         | {s - (3000 - total)}/{total} [00:10<01:00]INFO 2026 "
+                       f"ot_train.py:435 step:{s if s < 1000 else f'{s / 1000:.0f}K'} smpl:1K loss:{loss}\n"
+                       for s in steps)  # fmt: skip
+
+    first = "$ lerobot-train --steps=3000\nINFO cfg.steps=3000 (3K)\n" + lines(range(50, 1951, 50), 3000, 1.0)
+    resumed = "$ lerobot-train --resume=true\nINFO cfg.steps=3000 (3K)\nTraining:   0%|          | 0/1500 [00:00<?, ?step/s]" + lines(range(1550, 3001, 50), 1500, 2.0)
+    curve = dict(loss_curve_from_log(first + resumed, log_freq=50))
+    assert sorted(curve) == list(range(50, 3001, 50))
+    assert curve[1500] == 1.0 and curve[1550] == 2.0 and curve[1950] == 2.0 and curve[3000] == 2.0
+
+
 def _train_dir(tmp_path, steps=(1500, 3000)):
     train = tmp_path / "train"
     for s in steps:

@@ -27,6 +27,8 @@ def wilson_interval(successes: int, n: int, z: float = 1.959963984540054) -> tup
 
 _LOG_LINE = re.compile(r"^\$ |step:([0-9.]+)([KMBT]?) .*?loss:([0-9.]+)", re.MULTILINE)
 _SUFFIX = {"": 1, "K": 10**3, "M": 10**6, "B": 10**9, "T": 10**12}
+_CFG_STEPS = re.compile(r"cfg\.steps=(\d+)")
+_PROGRESS_BAR = re.compile(r"Training:\s+\d+%\|[^|\n\r]*\|\s*\d+/(\d+) \[")
 
 
 def median_logged(text: str, key: str) -> float | None:
@@ -44,19 +46,27 @@ def loss_curve_from_log(text: str, log_freq: int) -> list[tuple[int, float]]:
     """[(step, loss)] from a lerobot-train log (the harness's train.log may hold several invocations).
 
     LeRobot prints the step rounded to thousands ('step:2K' for 1,500-2,499), so each logged line's step is the
-    previous line's plus `log_freq`; the printed value anchors the count only at the first line of each
-    invocation (a line starting with '$ ', as the harness writes before every command), where it is exact below
-    1,000 and within 500 above (a resumed run). A step logged twice keeps its last loss.
+    previous line's plus `log_freq`. Each invocation (a line starting with '$ ', as the harness writes before every
+    command) anchors the count at its first logged line: at the step it resumed from, when the invocation logged
+    both `cfg.steps=S` and its progress bar's 'k/T' (LeRobot's bar counts the T = S - start steps left), so the
+    first line is the next multiple of `log_freq` after the start; else at the printed value (exact below 1,000,
+    within 500 above). A step logged twice keeps its last loss.
     """
     curve: dict[int, float] = {}
-    step = None
-    for m in _LOG_LINE.finditer(text):
-        if m.group(0).startswith("$"):
-            step = None
-            continue
-        shown = round(float(m.group(1)) * _SUFFIX[m.group(2)])
-        step = shown if step is None else step + log_freq
-        curve[step] = float(m.group(3))
+    for invocation in re.split(r"^(?=\$ )", text, flags=re.MULTILINE):
+        total = _CFG_STEPS.search(invocation)
+        bar = _PROGRESS_BAR.search(invocation)
+        start = int(total.group(1)) - int(bar.group(1)) if total and bar else None
+        step = None
+        for m in _LOG_LINE.finditer(invocation):
+            if m.group(0).startswith("$"):
+                continue
+            if step is None:
+                shown = round(float(m.group(1)) * _SUFFIX[m.group(2)])
+                step = shown if start is None else (start // log_freq + 1) * log_freq
+            else:
+                step += log_freq
+            curve[step] = float(m.group(3))
     return sorted(curve.items())
 
 

@@ -227,6 +227,20 @@ class Benchmark:
         if not a.dry_run:
             shutil.copyfile(meta / "rnd_embodiment_measured.json", used)
 
+    def _reread_loss_curve(self, rdir: Path, st: dict, result_path: Path) -> None:
+        """A finished run of this folder gets its loss curve read again from its train log, so a mended log parser
+        reaches runs finished before it (result JSON and run.json rewritten only when the curve changed)."""
+        log = rdir / "train.log"
+        if st.get("collected_from") or not log.exists():
+            return
+        before = st.get("loss_curve")
+        self._parse_train_log(log, st, self.a.log_freq)
+        if [list(x) for x in st.get("loss_curve") or []] != [list(x) for x in before or []]:
+            print(f"{_rel(result_path)}: loss curve read again from {_rel(log)}", flush=True)
+            _write_json(result_path, st)
+            if (rdir / "run.json").exists():
+                _write_json(rdir / "run.json", st)
+
     # ------------------------------------------------------------------ evaluation placements
     def eval_set(self, task: str) -> dict:
         """Evaluation placements of ``task`` (random: one per seed; spatial: the grid) + held-out check."""
@@ -586,6 +600,7 @@ class Benchmark:
         rdir = self.run_dir(method, task, n, seed)
         st = self.run_state(method, task, n, seed)
         if st.get("status") == "done" and not a.dry_run:
+            self._reread_loss_curve(rdir, st, self.result_path(method, task, n, seed))
             return
         if st.get("status") == "failed" and not a.retry_failed:
             self.failed = True
