@@ -134,10 +134,14 @@ STATUS: dict[str, tuple[str, str]] = {
                            "button-press-topdown, reach and door-close together (10 demos of each, 3,000 steps), "
                            "evaluated on each task (50 episodes per task, seeds 1000-1049): 83/200, against 173/200 "
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
-    "panda_spatial": (CURRENT, "Issue 33, in progress: Panda push-block, spatial protocol (furthest-point demos from "
-                      "the centre, 27-cell x/y/yaw grid), 3,000 steps; so far push-block R&D-AI with 2 demos: 0/27; lift-cube "
-                      "with 8 demos: R&D-AI 2/27, ACT 3/27, each only at the centre demo's (x, y) (heat map)."),
     # ---- archived: superseded or exploratory ----
+    "panda_spatial_raw_yaw": (ARCHIVED, "Issue 33's first Panda spatial runs (3,000 steps, 27-cell x/y/yaw grid): "
+                              "lift-cube R&D-AI 2/27 with 4 demos and 2/27 with 8, ACT 3/27 with 8; push-block R&D-AI "
+                              "0/27 with 2. Superseded: furthest-point sampling compared the cube's yaw without its "
+                              "90-degree symmetry, so 3 of the 8 lift-cube demos were near-twins of others (1-2 cm "
+                              "apart, yaw +43 against -37 degrees: the same view) that the expert grasped turning "
+                              "opposite ways; both methods then failed 7 of their own 8 demo placements "
+                              "(train_placements_lift-cube_n8.json). See its NOTE.md; the demos were re-sampled."),
     "so101_reach_wrist_spin": (ARCHIVED, "R&D-AI on SO-101 reach-target (10 demos, measured cameras, 3,000 steps): "
                                "0/50. Superseded: the scripted expert rolled the wrist far in every "
                                "demo, one way or the other by the side of the ball; the policy fitted the demos on "

@@ -106,6 +106,36 @@ def test_furthest_point_order_starts_at_the_centre():
     assert furthest_point_order(pts, 1, low, high).tolist() == [3]  # nearest the pool's mean (0.72, 0.35)
 
 
+def test_furthest_point_order_compares_a_periodic_coordinate_modulo_its_period():
+    """Hand-made: from (0, 0, .5), (1, 1, 1) and (1, 1, 0) are both 1.5 away; with coordinate 2 of period 1 they
+    are one pose, so after the first the next is (0, 1, .5), not its twin; without the period the twin comes
+    first (a tie with (0, 1, .5) at 1.0, broken by the lower index)."""
+    low, high = np.zeros(3), np.ones(3)
+    pts = np.array([[0, 0, 0.5], [1, 1, 1.0], [1, 1, 0.0], [0, 1, 0.5]])
+    assert furthest_point_order(pts, 4, low, high, start=pts[0]).tolist() == [0, 1, 2, 3]
+    periodic = furthest_point_order(pts, 4, low, high, start=pts[0], periods=np.array([0, 0, 1.0]))
+    assert periodic.tolist() == [0, 1, 3, 2]  # each index once, the twin last
+
+
+def test_lift_cube_demos_are_not_twins_that_turn_opposite_ways():
+    """A cube looks the same at yaw +44 and -44 degrees, but the expert turns the gripper +44 or -44 degrees
+    (the nearest equivalent grasp): furthest-point sampling over raw yaw picked such twins at the same corner
+    (3 pairs among 8 demos, 1-2 cm apart), which no policy can tell apart. With the yaw compared modulo 90
+    degrees (the env's placement_periods), no two of the first 8 demos lie within 3 cm of each other."""
+    _needs_panda()
+    from lerobot_rnd.sim.panda_env import RnDPandaEnv
+
+    env = RnDPandaEnv("lift-cube")
+    try:
+        assert env.placement_periods().tolist() == [0.0, 0.0, math.pi / 2]
+        seq = PlacementSequence(env, "fps-centre", seed=0, fps_pool=1000)
+        xy = np.array([seq[i][:2] for i in range(8)])
+    finally:
+        env.close()
+    gaps = np.linalg.norm(xy[:, None] - xy[None], axis=2) + np.eye(8)
+    assert gaps.min() > 0.03
+
+
 class _FakePushEnv:
     """push-block's placement layout [x, y, yaw, target x, target y]; valid = target 10 cm or more away."""
 

@@ -228,6 +228,22 @@ def test_resume_of_a_recording_older_than_the_expert_fix_names_its_expert(two_ep
 
 
 @needs_gl
+def test_resume_whose_placement_sequence_changed_is_refused(two_episodes, capsys):
+    """A dataset begun with another placement sequence (as the Panda fps-centre ones recorded before the yaw
+    symmetry) must not be extended with the new one: its demos would mix two sequences."""
+    log_path = two_episodes / rec.RECORDING_FILE
+    log = json.loads(log_path.read_text())
+    log["attempts"][0]["placement"] = [v + 0.01 for v in log["attempts"][0]["placement"]]
+    log_path.write_text(json.dumps(log))
+    before = folder_state(two_episodes)
+    assert rec.main(cli(two_episodes, "--task", "reach-v3", "--episodes", "3", "--resume")) == 2
+    line = one_error_line(capsys.readouterr().err)
+    for word in ["--resume:", "attempt 0 was recorded at placement", "placement sequence changed", "another --root"]:
+        assert word in line, line
+    assert folder_state(two_episodes) == before
+
+
+@needs_gl
 def test_resume_with_episodes_below_the_total_records_nothing(two_episodes, capsys):
     before = folder_state(two_episodes)
     assert rec.main(cli(two_episodes, "--task", "reach-v3", "--episodes", "1", "--resume")) == 0

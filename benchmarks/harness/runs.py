@@ -30,7 +30,7 @@ DEMO_PLACEMENTS = {
            "to the range) of a pool of 1000 valid placements drawn with the recording seed; the first is the pool "
            "point nearest the pool's mean",
     "fps-centre": "lerobot-rnd-record --placements fps-centre: furthest point sampling over the object's x, y and "
-                  "yaw (scaled to their range), starting at the centre of the range; pool = the centre + 999 "
+                  "yaw (scaled to their range; yaw compared modulo the object's 90-degree symmetry), starting at the centre of the range; pool = the centre + 999 "
                   "uniform draws with the recording seed; the other coordinates (push-block / pick-place: the "
                   "target x, y) at the centre of their range when valid (the target must be 10 cm or more from the "
                   "object, and push-block's 22 cm or less: the centre is valid for objects 10-22 cm from it), else "

@@ -82,7 +82,7 @@ SUITES: dict[str, dict] = {
     "panda": dict(
         env_type="rnd_panda", config_dir=REPO_ROOT / "policies_config" / "panda", dataset_prefix="panda",
         record_args=["--suite", "panda"],
-        # --protocol spatial: furthest-point sampling over (x, y, yaw) from the centre of the range (the
+        # --protocol spatial: furthest-point sampling over (x, y, yaw mod 90 degrees) from the centre of the range (the
         # recorder's fps-centre); the grid: cell centres over x, y and yaw; the target (push-block, pick-place)
         # at the centre of its range where that is valid (10 cm or more from the object; push-block: 22 cm or
         # less), else drawn from a seeded generator until valid (demos: the recording seed; grid cell i:

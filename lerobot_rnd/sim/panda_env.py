@@ -143,6 +143,9 @@ PUSH_SUCCESS_RADIUS = 0.03
 PLACE_SUCCESS_RADIUS = 0.03
 BUTTON_SUCCESS_DEPTH = 0.01
 
+# the yaw symmetry of every task's object (square from above): yaws 90 degrees apart show the same scene
+OBJECT_YAW_PERIOD = math.pi / 2
+
 PLACEMENT_RANGES = {
     # x, y, yaw
     "lift-cube": (np.array([0.33, -0.15, -math.pi / 4]), np.array([0.55, 0.15, math.pi / 4])),
@@ -261,6 +264,14 @@ class RnDPandaEnv(RnDMuJoCoEnv):
     def placement_space(self) -> spaces.Box:
         low, high = PLACEMENT_RANGES[self.task]
         return spaces.Box(low, high, dtype=np.float64)
+
+    def placement_periods(self) -> np.ndarray:
+        """Per placement coordinate, the period after which the scene looks the same (0: none): the object's yaw
+        repeats every 90 degrees (the cube, the 5 x 5 cm block and the square button box are square from above),
+        so the two ends of its [-45, 45]-degree range are one pose. Furthest-point sampling of demos uses it."""
+        periods = np.zeros(len(PLACEMENT_RANGES[self.task][0]))
+        periods[2] = OBJECT_YAW_PERIOD
+        return periods
 
     def is_valid_placement(self, placement: Sequence[float]) -> bool:
         """Whether the placement has the right size, lies in the range (1 mm tolerance), and (push-block)

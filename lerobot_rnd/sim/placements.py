@@ -10,21 +10,48 @@ import numpy as np
 
 
 def furthest_point_order(
-    points: np.ndarray, n: int, low: np.ndarray, high: np.ndarray, start: np.ndarray | None = None
+    points: np.ndarray,
+    n: int,
+    low: np.ndarray,
+    high: np.ndarray,
+    start: np.ndarray | None = None,
+    periods: np.ndarray | None = None,
 ) -> np.ndarray:
     """Indices of ``n`` points chosen greedily furthest from those chosen so far (coordinates scaled
-    to the placement range; the first is the point nearest ``start``, by default the pool's mean)."""
+    to the placement range; the first is the point nearest ``start``, by default the pool's mean).
+
+    ``periods`` (one per coordinate, 0 = none): a coordinate whose values ``period`` apart show the same scene (a
+    cube's yaw repeats every 90 degrees) is compared modulo its period, so the two ends of a cube's
+    [-45, 45]-degree yaw range count as one pose, not the furthest apart."""
     span = np.where(high - low > 0, high - low, 1.0)
     x = (points - low) / span
+    wrap = np.zeros(x.shape[1]) if periods is None else np.asarray(periods, dtype=np.float64) / span
+
+    def dist(to: np.ndarray) -> np.ndarray:
+        diff = np.abs(x - to)
+        diff = np.where(wrap > 0, np.minimum(np.mod(diff, np.where(wrap > 0, wrap, 1.0)),
+                                             wrap - np.mod(diff, np.where(wrap > 0, wrap, 1.0))), diff)  # fmt: skip
+        return np.linalg.norm(diff, axis=1)
+
     centre = x.mean(0) if start is None else (np.asarray(start, dtype=np.float64) - low) / span
-    first = int(np.argmin(np.linalg.norm(x - centre, axis=1)))
+    first = int(np.argmin(dist(centre)))
     order = [first]
-    d = np.linalg.norm(x - x[first], axis=1)
+    d = dist(x[first])
+    d[first] = -np.inf  # never chosen twice, even where the pool repeats a pose
     for _ in range(min(n, len(x)) - 1):
         nxt = int(np.argmax(d))
         order.append(nxt)
-        d = np.minimum(d, np.linalg.norm(x - x[nxt], axis=1))
+        d = np.minimum(d, dist(x[nxt]))
+        d[nxt] = -np.inf
     return np.asarray(order, dtype=np.int64)
+
+
+def placement_periods(env) -> np.ndarray:
+    """Per placement coordinate, the period after which the scene repeats (0: none): the env's
+    ``placement_periods()`` (a Panda task's object yaw: 90 degrees) or zeros."""
+    n = len(env.placement_space.low)
+    get = getattr(env, "placement_periods", None)
+    return np.zeros(n) if get is None else np.asarray(get(), dtype=np.float64)
 
 
 PLACEMENT_MODES = ("random", "fps", "fps-centre")
@@ -66,7 +93,8 @@ class PlacementSequence:
     """Deterministic, indexable sequence of valid placements for one env (random, fps or fps-centre).
 
     ``fps-centre``: furthest point sampling over the coordinates :func:`fps_centre_dims` (Panda: object x, y,
-    yaw), starting from the centre of their range: the pool is that centre plus ``fps_pool - 1`` uniform draws of
+    yaw; yaw compared modulo the object's symmetry, :func:`placement_periods`), starting from the centre of their
+    range: the pool is that centre plus ``fps_pool - 1`` uniform draws of
     those coordinates, each completed by :func:`complete_placement` (the other coordinates, e.g. a target, at the
     centre of their range if valid, else drawn with the sequence's seeded generator until valid); the first
     placement is the centre, each next one the pool point furthest from those before, in those coordinates."""
@@ -80,7 +108,7 @@ class PlacementSequence:
         if mode == "fps":
             pool = self._draw_valid(self.fps_pool)
             sp = env.placement_space
-            order = furthest_point_order(np.stack(pool), len(pool), sp.low, sp.high)
+            order = furthest_point_order(np.stack(pool), len(pool), sp.low, sp.high, periods=placement_periods(env))
             self._items = [pool[i] for i in order]
         elif mode == "fps-centre":
             sp = env.placement_space
@@ -98,7 +126,8 @@ class PlacementSequence:
             if not pool:
                 raise RuntimeError(f"{env.task}: no valid placement in a pool of {self.fps_pool}")
             pts = np.stack(pool)
-            order = furthest_point_order(pts[:, dims], len(pool), low[dims], high[dims], start=centre[dims])
+            order = furthest_point_order(pts[:, dims], len(pool), low[dims], high[dims], start=centre[dims],
+                                         periods=placement_periods(env)[dims])  # fmt: skip
             self._items = [pool[i] for i in order]
 
     def _draw_valid(self, n: int) -> list[np.ndarray]:

@@ -21,7 +21,8 @@ kept episodes the dataset should hold: with ``--resume`` recording continues whe
 next placements of the same deterministic sequence. Placements are MetaWorld ``rand_vec``s: ``random``
 draws them uniformly from the task's range (seeded); ``fps`` picks them by furthest point sampling over a
 seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread); ``fps-centre`` starts at the centre of
-the range and spreads only the object's x, y and yaw for Panda tasks (``PlacementSequence``). ``--list-tasks`` lists the
+the range and spreads only the object's x, y and yaw for Panda tasks (yaw modulo the object's 90-degree symmetry;
+``PlacementSequence``). ``--list-tasks`` lists the
 tasks of every suite.
 
 Several tasks (``--task a,b,c``) go into one dataset, task after task, ``--episodes`` of each; every frame's
@@ -556,6 +557,20 @@ def saved_per_task(log: dict, tasks: Sequence[str]) -> dict[str, int]:
     return saved
 
 
+def _check_same_placements(attempts: list[dict], seq, root: Path, s) -> None:
+    """A resumed recording must go on with the placement sequence it began with: every logged attempt's placement
+    is the one ``seq`` gives at its index (else the demos would mix two sequences, e.g. one recorded before
+    furthest-point sampling learned the object's yaw symmetry)."""
+    for a in attempts:
+        if not np.allclose(seq[a["placement_index"]], a["placement"], atol=1e-9):
+            raise SettingError(
+                f"--resume: {root}: attempt {a['placement_index']} was recorded at placement {a['placement']}, but --placements "
+                f"{s.placements} --seed {s.seed} now gives {[float(v) for v in seq[a['placement_index']]]} there "
+                "(the placement sequence changed since this dataset was begun): choose another --root, or remove "
+                "this one and record it again"
+            )
+
+
 def _check_same_cameras(first, other, first_task: str, task: str) -> None:
     """Raise a :class:`SettingError` when two tasks of one recording see through differently calibrated cameras
     (one dataset has one ``meta/rnd_embodiment.json``)."""
@@ -600,6 +615,12 @@ def _record(
         shutil.rmtree(root)
     env, expert, fps, robot_type = make_env_expert(replace(s, task=tasks[0]))
     if root.exists():
+        try:  # before the dataset is opened: a refused resume leaves the folder as it was
+            first = [a for a in log["attempts"] if attempt_task(a, log["settings"]) == tasks[0]]
+            _check_same_placements(first, PlacementSequence(env, s.placements, s.seed, s.fps_pool), root, s)
+        except SettingError:
+            env.close()
+            raise
         dataset = LeRobotDataset(s.repo_id, root=root)
     else:
         dataset = LeRobotDataset.create(
@@ -631,6 +652,8 @@ def _record(
             mine = [a for a in log["attempts"] if attempt_task(a, log["settings"]) == task]
             next_index = 1 + max((a["placement_index"] for a in mine), default=-1)
             seq = PlacementSequence(env, s.placements, s.seed, s.fps_pool)
+            if task != tasks[0]:
+                _check_same_placements(mine, seq, root, s)
             task_attempts = task_failures = 0
             while saved[task] < s.episodes:
                 if task_attempts >= max_attempts:
