@@ -1,10 +1,10 @@
 #!/usr/bin/env python
-"""Where does a reach policy's gripper go? Roll a checkpoint out and record the gripper's path against the goal.
+"""Where does a policy's gripper go? Roll a checkpoint out and record the gripper's path against the goal.
 
 A failed reach episode only says "not within 5 cm". This script runs lerobot-eval's own rollout loop
 (`lerobot.scripts.lerobot_eval.rollout`, same env, processors and seeds as `lerobot-eval --seed=<first>`)
-and records, per episode, the gripper centre (MetaWorld's `tcp_center`, the SO-101's EE site) at every step, the
-goal (the SO-101's target or cube), the closest
+and records, per episode, the gripper centre (MetaWorld's `tcp_center`, the SO-101's EE site, the Panda's EE frame)
+at every step, the goal (the SO-101's target or cube, the Panda task's object), the closest
 and final distances, how far the gripper still moved over the last 50 steps, and the nearest demo goal of
 the policy's training set. It tells apart a policy that heads for the goal and stops short, one that goes
 to where a demonstration went, and one that wanders. `goal_response` sums it up: per axis, how far the
@@ -51,11 +51,15 @@ def recording_suite(data_root: Path) -> str:
 
 def demo_goals(data_root: Path) -> np.ndarray:
     """(N, 3) goal positions (world frame, m) of a recording's demos in episode order: MetaWorld, the placement's
-    last three numbers; SO-101 reach-target, the target (x, y, z); SO-101 pick-cube, the cube's centre from its
-    (x, y, yaw) placement."""
+    last three numbers; SO-101 reach-target, the target (x, y, z); SO-101 pick-cube and the Panda tasks, the object's
+    centre (a 4 cm cube's height) from its (x, y, yaw, ...) placement."""
     placements = np.array(training_placements(data_root), dtype=np.float64)
     if recording_suite(data_root) == "so101" and recording_settings(data_root)["task"] == "pick-cube":
         from lerobot_rnd.sim.so101_scene import CUBE_HALF
+
+        return np.concatenate([placements[:, :2], np.full((len(placements), 1), CUBE_HALF)], axis=1)
+    if recording_suite(data_root) == "panda":  # the object's (x, y, yaw, ...): its centre on the table
+        from lerobot_rnd.sim.panda_scene import CUBE_HALF
 
         return np.concatenate([placements[:, :2], np.full((len(placements), 1), CUBE_HALF)], axis=1)
     return placements[:, -3:]
@@ -269,9 +273,17 @@ def main(argv=None) -> int:
     data = Path(a.data)
     settings = recording_settings(data)
     suite = recording_suite(data)
-    if suite not in ("metaworld", "so101"):
-        p.error(f"--data {data}: a {suite!r} recording; this script traces MetaWorld and SO-101 recordings")
-    if suite == "so101":
+    if suite not in ("metaworld", "so101", "panda"):
+        p.error(f"--data {data}: a {suite!r} recording; this script traces MetaWorld, SO-101 and Panda recordings")
+    if suite == "panda":  # the goal: the object (cube, block, button); the hand: the EE frame (pinch site)
+        from benchmarks.harness.scales import SUITES
+        from lerobot_rnd.sim.panda_env import RnDPandaEnvConfig
+
+        env_cfg = RnDPandaEnvConfig(task=settings["task"], **recorded_env_overrides(settings),
+                                    episode_length=SUITES["panda"]["scales"]["cpu"]["episode_length"])  # fmt: skip
+        goal_of = lambda e: e.object_pos().copy()
+        hand_of = lambda e: e.ee_pose()[:3, 3].copy()
+    elif suite == "so101":
         env_cfg = RnDSO101EnvConfig(task=settings["task"], **recorded_env_overrides(settings))
         # the goal: the target for reach-target, the cube for pick-cube; the hand: MuJoCo's EE site
         goal_of = (lambda e: e.target_pos()) if settings["task"] == "reach-target" else (lambda e: e.cube_pos())

@@ -664,7 +664,8 @@ def panda_spatial_section() -> list[str]:
         "### Panda, spatial protocol (6-DoF gripper, furthest-point demos)",
         "",
         "Demos by furthest-point sampling over the object's (x, y, yaw) from the centre of its range (yaw modulo the "
-        "object's 90-degree symmetry: [why](../benchmarks/results/archive/panda_spatial_raw_yaw/NOTE.md)); evaluation on "
+        "object's 90-degree symmetry; the first round, sampled without it, is archived as `panda_spatial_raw_yaw`); "
+        "evaluation on "
         "a 3 x 3 x 3 grid of cell centres over x, y and yaw (27 episodes per cell of the table, Wilson 95% "
         "intervals); 3,000 training steps at batch 8; `policies_config/panda/`; "
         f"[benchmarks/results/{PANDA_SPATIAL_FOLDER}](../benchmarks/results/{PANDA_SPATIAL_FOLDER}/"

@@ -134,6 +134,13 @@ STATUS: dict[str, tuple[str, str]] = {
                            "button-press-topdown, reach and door-close together (10 demos of each, 3,000 steps), "
                            "evaluated on each task (50 episodes per task, seeds 1000-1049): 83/200, against 173/200 "
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
+    "panda_spatial": (CURRENT, "Issue 33, in progress: Panda lift-cube, spatial protocol (furthest-point demos from the "
+                      "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps: "
+                      "with 8 demos R&D-AI 2/27, both at the centre (x, y)."),
+    "trace_panda_lift_rnd_ai_n8.json": (CURRENT, "Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos, 3,000 "
+                                        "steps), closed loop on validation seeds 100-119 (random placements): 0/20; "
+                                        "it moves the same whatever the cube's position (slope of its step-30 "
+                                        "displacement on the cube's offset: x -0.07, y 0.03; the demos: 1.00)."),
     # ---- archived: superseded or exploratory ----
     "panda_spatial_raw_yaw": (ARCHIVED, "Issue 33's first Panda spatial runs (3,000 steps, 27-cell x/y/yaw grid): "
                               "lift-cube R&D-AI 2/27 with 4 demos and 2/27 with 8, ACT 3/27 with 8; push-block R&D-AI "

@@ -169,3 +169,30 @@ def test_metaworld_hands_are_the_states_first_three_numbers(tmp_path):
     (tmp_path / "meta" / "rnd_recording.json").write_text(json.dumps({"settings": {}, "attempts": []}))
     states = np.arange(12.0).reshape(2, 6)
     assert tr.demo_hand_positions(tmp_path, states).tolist() == [[0.0, 1.0, 2.0], [6.0, 7.0, 8.0]]
+
+
+def test_panda_demo_goals_and_hands_are_where_mujoco_puts_them(tmp_path):
+    """Panda recordings: the goal is the object MuJoCo places for the demo's (x, y, yaw) placement, and the hand
+    is the state's first three numbers, the EE frame (the controller's pinch site)."""
+    pytest.importorskip("gym_hil", reason="the Panda scenes need gym-hil's assets")
+    from tests.helpers import gl_available
+
+    if not gl_available():
+        pytest.skip("no headless OpenGL (MUJOCO_GL=egl/osmesa)")
+    from lerobot_rnd.sim.panda_env import RnDPandaEnv
+
+    env = RnDPandaEnv("lift-cube", observation_height=32, observation_width=32)
+    placements = [[0.44, 0.0, 0.0], [0.35, 0.12, -0.7]]
+    (tmp_path / "meta").mkdir()
+    attempts = [{"placement": p, "success": True, "episode_index": i} for i, p in enumerate(placements)]
+    (tmp_path / "meta" / "rnd_recording.json").write_text(
+        json.dumps({"settings": {"suite": "panda", "task": "lift-cube"}, "attempts": attempts}))
+    goals, states, hands = [], [], []
+    for p in placements:
+        obs, _ = env.reset(options={"placement": p})
+        goals.append(env.object_pos())
+        states.append(obs["agent_pos"])
+        hands.append(env.ee_pose()[:3, 3])
+    env.close()
+    np.testing.assert_allclose(tr.demo_goals(tmp_path), np.array(goals), atol=2e-3)
+    np.testing.assert_allclose(tr.demo_hand_positions(tmp_path, np.array(states)), np.array(hands), atol=1e-5)
