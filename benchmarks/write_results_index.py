@@ -141,6 +141,9 @@ STATUS: dict[str, tuple[str, str]] = {
                                         "steps), closed loop on validation seeds 100-119 (random placements): 0/20; "
                                         "it moves the same whatever the cube's position (slope of its step-30 "
                                         "displacement on the cube's offset: x -0.07, y 0.03; the demos: 1.00)."),
+    "trace_panda_lift_rnd_ai_n8_steps10.json": (CURRENT, "The same checkpoint and validation seeds sampled with 10 "
+                                                "denoising steps instead of its 1: 1/20, slopes x -0.00, y -0.02: "
+                                                "more sampling steps do not make it follow the cube."),
     # ---- archived: superseded or exploratory ----
     "panda_spatial_raw_yaw": (ARCHIVED, "Issue 33's first Panda spatial runs (3,000 steps, 27-cell x/y/yaw grid): "
                               "lift-cube R&D-AI 2/27 with 4 demos and 2/27 with 8, ACT 3/27 with 8; push-block R&D-AI "
