@@ -26,11 +26,12 @@ def furthest_point_order(
     span = np.where(high - low > 0, high - low, 1.0)
     x = (points - low) / span
     wrap = np.zeros(x.shape[1]) if periods is None else np.asarray(periods, dtype=np.float64) / span
+    periodic = wrap > 0
 
     def dist(to: np.ndarray) -> np.ndarray:
         diff = np.abs(x - to)
-        diff = np.where(wrap > 0, np.minimum(np.mod(diff, np.where(wrap > 0, wrap, 1.0)),
-                                             wrap - np.mod(diff, np.where(wrap > 0, wrap, 1.0))), diff)  # fmt: skip
+        m = np.mod(diff[:, periodic], wrap[periodic])
+        diff[:, periodic] = np.minimum(m, wrap[periodic] - m)
         return np.linalg.norm(diff, axis=1)
 
     centre = x.mean(0) if start is None else (np.asarray(start, dtype=np.float64) - low) / span
