@@ -136,7 +136,7 @@ STATUS: dict[str, tuple[str, str]] = {
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
     "panda_spatial": (CURRENT, "Issue 33, in progress: Panda lift-cube, spatial protocol (furthest-point demos from the "
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps: "
-                      "with 8 demos R&D-AI 2/27, both at the centre (x, y)."),
+                      "with 8 demos R&D-AI 2/27 and ACT 3/27, each only at the centre (x, y)."),
     "trace_panda_lift_rnd_ai_n8.json": (CURRENT, "Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos, 3,000 "
                                         "steps), closed loop on validation seeds 100-119 (random placements): 0/20; "
                                         "it moves the same whatever the cube's position (slope of its step-30 "
