@@ -136,7 +136,8 @@ STATUS: dict[str, tuple[str, str]] = {
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
     "panda_spatial": (CURRENT, "Issue 33, in progress: Panda lift-cube, spatial protocol (furthest-point demos from the "
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps: "
-                      "with 8 demos R&D-AI 2/27 and ACT 3/27, each only at the centre (x, y)."),
+                      "with 8 demos R&D-AI 2/27 and ACT 3/27, each only at the centre (x, y); on their own 8 demo placements "
+                      "(train_placements_lift-cube_n8.json) R&D-AI 2/8, ACT 1/8."),
     "trace_panda_lift_rnd_ai_n8.json": (CURRENT, "Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos, 3,000 "
                                         "steps), closed loop on validation seeds 100-119 (random placements): 0/20; "
                                         "it moves the same whatever the cube's position (slope of its step-30 "
@@ -144,6 +145,9 @@ STATUS: dict[str, tuple[str, str]] = {
     "trace_panda_lift_rnd_ai_n8_steps10.json": (CURRENT, "The same checkpoint and validation seeds sampled with 10 "
                                                 "denoising steps instead of its 1: 1/20, slopes x -0.00, y -0.02: "
                                                 "more sampling steps do not make it follow the cube."),
+    "trace_panda_lift_act_n8.json": (CURRENT, "The panda_spatial ACT lift-cube checkpoint (8 demos, 3,000 steps) on the "
+                                     "same validation seeds: 1/20, slopes x -0.00, y 0.00: ACT ignores the cube's "
+                                     "position too."),
     # ---- archived: superseded or exploratory ----
     "panda_spatial_raw_yaw": (ARCHIVED, "Issue 33's first Panda spatial runs (3,000 steps, 27-cell x/y/yaw grid): "
                               "lift-cube R&D-AI 2/27 with 4 demos and 2/27 with 8, ACT 3/27 with 8; push-block R&D-AI "
