@@ -134,21 +134,18 @@ STATUS: dict[str, tuple[str, str]] = {
                            "button-press-topdown, reach and door-close together (10 demos of each, 3,000 steps), "
                            "evaluated on each task (50 episodes per task, seeds 1000-1049): 83/200, against 173/200 "
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
-    "panda_spatial": (CURRENT, "Issue 33, in progress: Panda lift-cube, spatial protocol (furthest-point demos from the "
-                      "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps: "
-                      "with 8 demos R&D-AI 2/27 and ACT 3/27, each only at the centre (x, y); on their own 8 demo placements "
-                      "(train_placements_lift-cube_n8.json) R&D-AI 2/8, ACT 1/8."),
-    "trace_panda_lift_rnd_ai_n8.json": (CURRENT, "Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos, 3,000 "
-                                        "steps), closed loop on validation seeds 100-119 (random placements): 0/20; "
-                                        "it moves the same whatever the cube's position (slope of its step-30 "
-                                        "displacement on the cube's offset: x -0.07, y 0.03; the demos: 1.00)."),
-    "trace_panda_lift_rnd_ai_n8_steps10.json": (CURRENT, "The same checkpoint and validation seeds sampled with 10 "
-                                                "denoising steps instead of its 1: 1/20, slopes x -0.00, y -0.02: "
-                                                "more sampling steps do not make it follow the cube."),
-    "trace_panda_lift_act_n8.json": (CURRENT, "The panda_spatial ACT lift-cube checkpoint (8 demos, 3,000 steps) on the "
-                                     "same validation seeds: 1/20, slopes x -0.00, y 0.00: ACT ignores the cube's "
-                                     "position too."),
+    "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
+                                          "the centre and the four (x, y) corners of lift-cube's placement range "
+                                          "(benchmarks/panda_camera_views.py): front 10-16 px wide at 128 px; the "
+                                          "wrist camera sees it at three of the five, the gripper hides the two "
+                                          "corners nearest the robot."),
     # ---- archived: superseded or exploratory ----
+    "panda_spatial_camera_v1": (ARCHIVED, "Issue 33's second Panda spatial round (lift-cube, 8 demos, 3,000 steps): "
+                                "R&D-AI 2/27, ACT 3/27, each only at the centre; on their own demo placements 2/8 "
+                                "and 1/8; traced on validation seeds neither followed the cube (slopes about 0; "
+                                "traces/). Superseded: the front camera showed the cube 8-11 px wide at 128 px and "
+                                "the wrist camera lost it away from the centre; the cameras were re-framed. See its "
+                                "NOTE.md."),
     "panda_spatial_raw_yaw": (ARCHIVED, "Issue 33's first Panda spatial runs (3,000 steps, 27-cell x/y/yaw grid): "
                               "lift-cube R&D-AI 2/27 with 4 demos and 2/27 with 8, ACT 3/27 with 8; push-block R&D-AI "
                               "0/27 with 2. Superseded: furthest-point sampling compared the cube's yaw without its "

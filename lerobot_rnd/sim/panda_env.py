@@ -35,9 +35,9 @@ Observation (LeRobot's ``preprocess_observation`` maps it to ``observation.image
 - gripper opening: 1 - (mean Robotiq driver joint angle) / 0.8 rad, clipped to [0, 1]: 1 = fully open
   (85 mm), 0 = fully closed (about 0.42 when closed on the 4 cm cube).
 
-Cameras: ``front`` (static, in front of the robot looking back at the workspace, fovy 50) and
-``wrist`` (gym-hil's ``handcam_rgb`` on the arm's flange: rigid on the hand, fovy 42.5, sees the finger
-tips). Fast rendering: no multisampling, shadows or reflections, decimated arm meshes.
+Cameras: ``front`` (static, in front of the robot looking back at the workspace, fovy 42) and
+``wrist`` (gym-hil's ``handcam_rgb`` on the arm's flange: rigid on the hand, fovy widened to 60, sees the finger
+tips); ``panda_scene.FRONT_CAMERA_*`` and ``WRIST_CAMERA_FOVY`` say why. Fast rendering: no multisampling, shadows or reflections, decimated arm meshes.
 
 Action (7,), clipped to [-1, 1], one control step = ``control_dt`` = 0.1 s (10 Hz, 50 physics steps)::
 

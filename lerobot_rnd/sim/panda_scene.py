@@ -32,10 +32,16 @@ PHYSICS_DT = 0.002
 HOME_QUAT = np.array([0.0, 1.0, 0.0, 0.0])
 #: EE (pinch) position at the start of every episode
 START_POS = np.array([0.45, 0.0, 0.22])
-#: static front camera: position and the point it looks at
-FRONT_CAMERA_POS = (0.95, 0.0, 0.55)
-FRONT_CAMERA_LOOKAT = (0.42, 0.0, 0.08)
-FRONT_CAMERA_FOVY = 50.0
+#: static front camera: position, the point it looks at and its vertical field of view, framed on the placement
+#: range (x 0.33-0.55, y +-0.15) with the gripper's start pose in view: at 128 px the 4 cm cube is 10-16 px wide
+#: (``benchmarks/panda_camera_views.py``; the first framing, 0.95 / 0.55 m away at fovy 50, gave it 8-11 px)
+FRONT_CAMERA_POS = (0.88, 0.0, 0.52)
+FRONT_CAMERA_LOOKAT = (0.44, 0.0, 0.09)
+FRONT_CAMERA_FOVY = 42.0
+#: the wrist camera's (gym-hil's ``handcam_rgb``) vertical field of view; gym-hil's 42.5 degrees showed the cube at
+#: the start pose only near the centre of the placement range, 60 shows it over most of the range (the gripper
+#: hides the corners nearest the robot), as a wide-angle wrist camera would
+WRIST_CAMERA_FOVY = 60.0
 
 CUBE_HALF = 0.02
 BLOCK_HALF = (0.025, 0.025, 0.02)
@@ -193,9 +199,9 @@ def build_model(task: str = "lift-cube", offscreen_size: int = 640, simplify_mes
     task = check_task(task)
     key = (task, int(offscreen_size), bool(simplify_meshes))
     if key not in _MODEL_CACHE:
-        _MODEL_CACHE[key] = mujoco.MjModel.from_xml_string(
-            scene_xml(task, offscreen_size), _assets(bool(simplify_meshes))
-        )
+        model = mujoco.MjModel.from_xml_string(scene_xml(task, offscreen_size), _assets(bool(simplify_meshes)))
+        model.cam_fovy[model.camera(MUJOCO_CAMERAS["wrist"]).id] = WRIST_CAMERA_FOVY
+        _MODEL_CACHE[key] = model
     return copy.deepcopy(_MODEL_CACHE[key])
 
 
