@@ -9,7 +9,9 @@ starts from the same state: there only the images tell the demos apart.
 For each demo episode and each start frame t (``--frames``), the script feeds the policy the recorded
 observations (with its own history length), samples ``--draws`` chunks (noise draws for diffusion policies), and
 compares the joint target at the end of the executed part of the chunk (``n_action_steps``) with the demo's action
-at the same step, both relative to the joint state at t. Per start frame and joint it writes the least-squares slope
+at the same step, both relative to the joint state at t (with ``--delta-actions``, for per-step displacement actions
+such as the Panda suite's: the sum of the executed part of the chunk against the sum of the demo's actions over the
+same steps). Per start frame and joint it writes the least-squares slope
 of predicted on demonstrated displacement across the episodes (1: follows the demos, 0: the same motion for every
 goal), the correlation, the mean absolute error and the spread over draws. Any LeRobot policy type loads.
 
@@ -60,6 +62,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--still-history", action="store_true",
                    help="feed the current frame as every past frame too (no motion in the history): if the slopes "
                         "drop, the policy was reading the motion rather than the goal")
+    p.add_argument("--delta-actions", action="store_true",
+                   help="the actions are per-step displacements (the Panda suite's ee_delta): compare the sum of the "
+                        "executed part of the chunk with the sum of the demo's actions over the same steps, instead "
+                        "of the joint target at its end minus the state")
     p.add_argument("--policy-arg", action="append", default=[], metavar="FIELD=VALUE",
                    help="override a sampler setting of the loaded config, e.g. num_inference_steps=4 (repeatable; "
                         "as trace_rollouts.py)")
@@ -108,12 +114,21 @@ def main(argv: list[str] | None = None) -> int:
             batch["task"] = [now["task"]] * a.draws
             with torch.no_grad():
                 chunk = policy.predict_action_chunk(pre(batch))  # (draws, T, A), normalised
-            action = post(chunk[:, k_end]).float().cpu().numpy()  # (draws, A) in the dataset's units
-            state = now["observation.state"].numpy()
-            demo_action = ds[min(start + t0 + k_end, stop - 1)]["action"].numpy()
-            preds.append(action.mean(0) - state)
-            demos.append(demo_action - state)
-            spreads.append(action.std(0))
+            if a.delta_actions:
+                executed = chunk[:, : k_end + 1]  # (draws, K, A)
+                steps = post(executed.reshape(-1, executed.shape[-1])).float().cpu().numpy()
+                moved = steps.reshape(a.draws, k_end + 1, -1).sum(1)  # (draws, A)
+                demo_moved = np.sum([ds[min(start + t0 + k, stop - 1)]["action"].numpy() for k in range(k_end + 1)], 0)
+                preds.append(moved.mean(0))
+                demos.append(demo_moved)
+                spreads.append(moved.std(0))
+            else:
+                action = post(chunk[:, k_end]).float().cpu().numpy()  # (draws, A) in the dataset's units
+                state = now["observation.state"].numpy()
+                demo_action = ds[min(start + t0 + k_end, stop - 1)]["action"].numpy()
+                preds.append(action.mean(0) - state)
+                demos.append(demo_action - state)
+                spreads.append(action.std(0))
         pred, demo = np.array(preds), np.array(demos)
         rows.append({"start_frame": t0, "episodes": len(preds), **response_stats(pred, demo),
                      "draw_std": np.mean(spreads, axis=0).tolist()})  # fmt: skip
@@ -129,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
     write_result_json(Path(a.out), {
         "benchmark": "chunk_goal_response", "policy_path": a.policy_path, "policy_type": cfg.type,
         "dataset_root": str(root), "n_obs_steps": history, "n_action_steps": int(cfg.n_action_steps),
-        "draws": a.draws, "seed": a.seed, "still_history": a.still_history,
+        "draws": a.draws, "seed": a.seed, "still_history": a.still_history, "delta_actions": a.delta_actions,
         "policy_args": a.policy_arg, "joint_names": names, "rows": rows,
     }, argv, script="benchmarks/chunk_goal_response.py")  # fmt: skip
     return 0

@@ -665,14 +665,16 @@ def panda_spatial_section() -> list[str]:
         "",
         "Demos by furthest-point sampling over the object's (x, y, yaw) from the centre of its range (yaw modulo the "
         "object's 90-degree symmetry); the front camera framed on the placement range (the cube 10-16 px wide at "
-        "128 px) and a 60-degree wrist camera; evaluation on "
+        "128 px) and a 60-degree wrist camera; the scripted expert approaches the object at 0.4 of full speed; "
+        "evaluation on "
         "a 3 x 3 x 3 grid of cell centres over x, y and yaw (27 episodes per cell of the table, Wilson 95% "
         "intervals); 3,000 training steps at batch 8; `policies_config/panda/`; "
         f"[benchmarks/results/{PANDA_SPATIAL_FOLDER}](../benchmarks/results/{PANDA_SPATIAL_FOLDER}/"
         f"{'results.md' if (folder / 'results.md').exists() else 'runs/'})"
         + (f"; heat maps with the training placements marked: {', '.join(maps)}" if maps else "") + ". "
-        "Two earlier rounds are archived: `panda_spatial_raw_yaw` (demos sampled without the yaw symmetry) and "
-        "`panda_spatial_camera_v1` (cameras that showed the cube 8-11 px wide).",
+        "Three earlier rounds are archived: `panda_spatial_raw_yaw` (demos sampled without the yaw symmetry), "
+        "`panda_spatial_camera_v1` (cameras that showed the cube 8-11 px wide) and `panda_spatial_fast_expert` (an "
+        "expert that made its whole approach within one action chunk).",
         "",
         *table,
     ]

@@ -140,6 +140,12 @@ STATUS: dict[str, tuple[str, str]] = {
                                           "wrist camera sees it at three of the five, the gripper hides the two "
                                           "corners nearest the robot."),
     # ---- archived: superseded or exploratory ----
+    "panda_spatial_fast_expert": (ARCHIVED, ("Issue 33's third Panda round: lift-cube, 8 demos, 3,000 steps, re-framed "
+                                  "cameras, R&D-AI only: 2/27; 0/20 on validation seeds with slopes x 0.03, y -0.01; on "
+                                  "its own demos the first chunk's lateral motion has slope 0.01 (traces/). "
+                                  "Superseded: the expert made the whole goal-dependent approach in 5-8 steps, one "
+                                  "action chunk planned from the first frame; it now approaches at 0.4 of full speed "
+                                  "(10-19 steps). See its NOTE.md.")),
     "panda_spatial_camera_v1": (ARCHIVED, "Issue 33's second Panda spatial round (lift-cube, 8 demos, 3,000 steps): "
                                 "R&D-AI 2/27, ACT 3/27, each only at the centre; on their own demo placements 2/8 "
                                 "and 1/8; traced on validation seeds neither followed the cube (slopes about 0; "

@@ -86,3 +86,28 @@ def test_still_history_and_sampler_steps_reach_the_policy(toy_dataset_root, tmp_
     assert {steps for _, steps in seen} == {3}
     result = json.loads(out.read_text())
     assert result["still_history"] is still and result["policy_args"] == ["num_inference_steps=3"]
+
+
+def test_delta_actions_compare_summed_steps(toy_dataset_root, tmp_path):
+    """--delta-actions: the demo's displacement is the sum of its actions over the executed steps (here checked
+    against the dataset's parquet, read with pandas), and the policy's is the sum of its chunk's executed steps."""
+    import pandas as pd
+    from lerobot.policies.factory import make_pre_post_processors
+
+    from tests.helpers import make_policy
+
+    policy, meta = make_policy(toy_dataset_root)
+    pre, post = make_pre_post_processors(policy.config, dataset_stats=meta.stats)
+    ckpt = tmp_path / "ckpt"
+    for obj in (policy, pre, post):
+        obj.save_pretrained(ckpt)
+    out = tmp_path / "cgr.json"
+    assert cgr.main(["--policy-path", str(ckpt), "--dataset-root", str(toy_dataset_root), "--repo-id",
+                     "local/toy_reach", "--frames", "0", "--draws", "2", "--delta-actions", "--out", str(out)]) == 0  # fmt: skip
+    result = json.loads(out.read_text())
+    k = policy.config.n_action_steps
+    frames = pd.concat([pd.read_parquet(f) for f in sorted(toy_dataset_root.glob("data/**/*.parquet"))])
+    sums = np.array([np.stack(g.sort_values("frame_index")["action"].to_numpy()[:k]).sum(0)
+                     for _, g in frames.groupby("episode_index")])  # fmt: skip
+    assert result["delta_actions"] is True
+    assert result["rows"][0]["demo_displacement_std"] == pytest.approx(sums.std(0).tolist(), abs=1e-5)

@@ -3,8 +3,8 @@
 ``PandaExpert(task).act(env) -> action (7,) float32`` in [-1, 1] for a
 :class:`~lerobot_rnd.sim.panda_env.RnDPandaEnv` (or a wrapper of one). The experts read privileged
 simulator state (object poses, the controller's target pose) and run a small state machine per task;
-they move the target pose towards waypoints at up to full speed (straight lines, position and
-rotation scaled together) and switch phases when the REAL end effector has arrived, so they also work
+they move the target pose towards waypoints (straight lines, position and rotation scaled together), at
+:data:`APPROACH_SPEED` to the first waypoint above the object and up to full speed after it and switch phases when the REAL end effector has arrived, so they also work
 with the controller's lag. The state machine restarts whenever the env is at step 0.
 
 - ``lift-cube``: above the cube with the gripper turned to the cube's yaw (modulo 90 degrees, so the
@@ -32,6 +32,11 @@ CLOSED_TIP_OFFSET = 0.018
 LIFT_Z = 0.20
 CARRY_Z = 0.12
 HOVER = 0.10
+#: fraction of the maximum step (0.02 m, 0.1 rad) for the approach to the point above the object, the only part of
+#: each task that depends on where the object is: at full speed it took 5-8 steps, so one 8-step action chunk, planned
+#: from the first frame, held all of it; at 0.4 it takes 10-19 steps (lift-cube), which a policy re-plans from new
+#: images (benchmarks/results/panda_env_speed.json has the expert's steps per episode)
+APPROACH_SPEED = 0.4
 
 
 def _yaw_of(q: np.ndarray) -> float:
@@ -124,7 +129,7 @@ class PandaExpert:
             e, r = self.ee_error(env, goal, q)
             if np.linalg.norm(e[:2]) < 0.006 and abs(e[2]) < 0.015 and r < math.radians(3):
                 self._next(1)
-            return self.move(env, goal, q, -1.0)
+            return self.move(env, goal, q, -1.0, speed=APPROACH_SPEED)
         if self.phase == 1:  # descend
             goal = np.array([cube[0], cube[1], cube[2] + 0.004])
             e, _ = self.ee_error(env, goal, q)
@@ -192,7 +197,7 @@ class PandaExpert:
             e, r = self.ee_error(env, goal, q)
             if np.linalg.norm(e[:2]) < 0.01 and abs(e[2]) < 0.02 and r < math.radians(5):
                 self._next(1)
-            return self.move(env, goal, q, 1.0)
+            return self.move(env, goal, q, 1.0, speed=APPROACH_SPEED)
         if self.phase == 1:  # lower
             goal = np.array([*behind, push_z])
             e, _ = self.ee_error(env, goal, q)
@@ -228,7 +233,7 @@ class PandaExpert:
             e, r = self.ee_error(env, goal, q)
             if np.linalg.norm(e[:2]) < 0.006 and abs(e[2]) < 0.02 and r < math.radians(4):
                 self._next(1)
-            return self.move(env, goal, q, 1.0)
+            return self.move(env, goal, q, 1.0, speed=APPROACH_SPEED)
         if self.phase == 1:  # press with the finger tips
             self.count += 1
             goal = np.array([top[0], top[1], top[2] - (BUTTON_TRAVEL - 0.002) + CLOSED_TIP_OFFSET])
