@@ -134,6 +134,17 @@ STATUS: dict[str, tuple[str, str]] = {
                            "button-press-topdown, reach and door-close together (10 demos of each, 3,000 steps), "
                            "evaluated on each task (50 episodes per task, seeds 1000-1049): 83/200, against 173/200 "
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
+    "panda_spatial": (CURRENT, ("Issue 33, in progress: Panda lift-cube, spatial protocol (furthest-point demos from the "
+                      "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps, "
+                      "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
+                      "of full speed: with 8 demos R&D-AI 4/27.")),
+    "trace_panda_lift_rnd_ai_n8.json": (CURRENT, ("Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos), closed "
+                                        "loop on validation seeds 100-119: 1/20; slope of its step-30 displacement on "
+                                        "the cube's offset x 0.47, y 0.10 (the demos: 1.01, 1.00): it now follows the "
+                                        "cube's x, hardly its y.")),
+    "chunk_goal_response_panda_lift_rnd_ai_n8.json": (CURRENT, ("The same checkpoint on its own 8 demos, open loop "
+                                                      "(--delta-actions): slope of the executed chunk's summed motion on "
+                                                      "the demo's at frame 0 x 0.50, y 0.07; at frames 8 and 16 0.91-0.98.")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
                                           "the centre and the four (x, y) corners of lift-cube's placement range "
                                           "(benchmarks/panda_camera_views.py): front 10-16 px wide at 128 px; the "
