@@ -137,14 +137,28 @@ STATUS: dict[str, tuple[str, str]] = {
     "panda_spatial": (CURRENT, ("Issue 33, in progress: Panda lift-cube, spatial protocol (furthest-point demos from the "
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps, "
                       "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
-                      "of full speed: with 8 demos R&D-AI 4/27.")),
+                      "of full speed: with 8 demos R&D-AI 4/27, ACT 4/27 (both the centre position at all three yaws "
+                      "and one more); on their own 8 demo placements (train_placements_lift-cube_n8.json) R&D-AI 1/8, "
+                      "ACT 7/8.")),
     "trace_panda_lift_rnd_ai_n8.json": (CURRENT, ("Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos), closed "
                                         "loop on validation seeds 100-119: 1/20; slope of its step-30 displacement on "
-                                        "the cube's offset x 0.47, y 0.10 (the demos: 1.01, 1.00): it now follows the "
+                                        "the cube's offset x 0.47, y 0.10 (the demos: 1.01, 1.00): it follows the "
                                         "cube's x, hardly its y.")),
-    "chunk_goal_response_panda_lift_rnd_ai_n8.json": (CURRENT, ("The same checkpoint on its own 8 demos, open loop "
+    "trace_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT lift-cube checkpoint (8 demos) on the same "
+                                     "validation seeds: 2/20; slopes x -0.14, y 0.88: it follows the cube's y, not its "
+                                     "x.")),
+    "chunk_goal_response_panda_lift_rnd_ai_n8.json": (CURRENT, ("The R&D-AI checkpoint on its own 8 demos, open loop "
                                                       "(--delta-actions): slope of the executed chunk's summed motion on "
-                                                      "the demo's at frame 0 x 0.50, y 0.07; at frames 8 and 16 0.91-0.98.")),
+                                                      "the demo's at frame 0 x 0.50, y 0.07; at frames 8 and 16 0.91-0.98: "
+                                                      "at the first frame, where only the cube tells the demos apart, it "
+                                                      "does not read the cube's y.")),
+    "chunk_goal_response_panda_lift_rnd_ai_n8_steps10.json": (CURRENT, ("The same with 10 denoising steps instead of 1: "
+                                                              "frame 0 x 0.58, y 0.09; the sampler is not the cause.")),
+    "chunk_goal_response_panda_lift_rnd_ai_n8_still.json": (CURRENT, ("The same with the current frame as its history "
+                                                            "frame too (--still-history): frame 8 x 0.89, y 0.90, as "
+                                                            "with its real history: it does not copy past motion.")),
+    "chunk_goal_response_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT checkpoint on its own demos: slopes "
+                                                   "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
                                           "the centre and the four (x, y) corners of lift-cube's placement range "
                                           "(benchmarks/panda_camera_views.py): front 10-16 px wide at 128 px; the "
