@@ -157,6 +157,11 @@ STATUS: dict[str, tuple[str, str]] = {
     "chunk_goal_response_panda_lift_rnd_ai_n8_still.json": (CURRENT, ("The same with the current frame as its history "
                                                             "frame too (--still-history): frame 8 x 0.89, y 0.90, as "
                                                             "with its real history: it does not copy past motion.")),
+    "chunk_goal_response_panda_lift_rnd_ai_n8_p16_step2000.json": (CURRENT, ("Diagnostic: R&D-AI on the same 8 demos "
+                                                                "with 16-px patches instead of 32 (step 2,000 of a "
+                                                                "3,000-step run; its note has the command): first chunk "
+                                                                "at frame 0 x 0.92, y 0.47, against 0.50, 0.07 with "
+                                                                "32-px patches at step 3,000.")),
     "chunk_goal_response_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT checkpoint on its own demos: slopes "
                                                    "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
