@@ -162,6 +162,11 @@ STATUS: dict[str, tuple[str, str]] = {
                                                                 "3,000-step run; its note has the command): first chunk "
                                                                 "at frame 0 x 0.92, y 0.47, against 0.50, 0.07 with "
                                                                 "32-px patches at step 3,000.")),
+    "chunk_goal_response_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("The same 16-px-patch diagnostic run at step 3,000 "
+                                                       "(outputs/diag/p16_work): first chunk at frame 0 x 0.87, y 0.53.")),
+    "train_placements_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("The 16-px-patch diagnostic run (step 3,000) on its "
+                                                        "own 8 demo placements: 5/8, against 1/8 for the shipped "
+                                                        "32-px patches and 7/8 for ACT.")),
     "chunk_goal_response_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT checkpoint on its own demos: slopes "
                                                    "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
