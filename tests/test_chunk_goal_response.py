@@ -33,16 +33,22 @@ def test_one_motion_for_every_goal_has_slope_zero_and_no_correlation():
     assert s["slope"][1] is None  # the demos do not move this joint differently: nothing to follow
 
 
-def test_runs_on_a_saved_policy_and_its_demos(toy_dataset_root, tmp_path):
+def saved_policy(toy_dataset_root, tmp_path, **overrides):
+    """A fresh R&D policy for the toy dataset, saved with its processors: (policy, dataset meta, checkpoint dir)."""
     from lerobot.policies.factory import make_pre_post_processors
 
     from tests.helpers import make_policy
 
-    policy, meta = make_policy(toy_dataset_root)
+    policy, meta = make_policy(toy_dataset_root, **overrides)
     pre, post = make_pre_post_processors(policy.config, dataset_stats=meta.stats)
     ckpt = tmp_path / "ckpt"
     for obj in (policy, pre, post):
         obj.save_pretrained(ckpt)
+    return policy, meta, ckpt
+
+
+def test_runs_on_a_saved_policy_and_its_demos(toy_dataset_root, tmp_path):
+    policy, meta, ckpt = saved_policy(toy_dataset_root, tmp_path)
     out = tmp_path / "cgr.json"
     assert cgr.main(["--policy-path", str(ckpt), "--dataset-root", str(toy_dataset_root), "--repo-id",
                      "local/toy_reach", "--frames", "0,2", "--draws", "2", "--out", str(out)]) == 0  # fmt: skip
@@ -57,16 +63,9 @@ def test_runs_on_a_saved_policy_and_its_demos(toy_dataset_root, tmp_path):
 def test_still_history_and_sampler_steps_reach_the_policy(toy_dataset_root, tmp_path, monkeypatch, still):
     """--still-history feeds the current frame as the past one (the state history the policy sees is constant);
     without it the past frame differs. --policy-arg sets the sampler the policy is built with."""
-    from lerobot.policies.factory import make_pre_post_processors
-
     from lerobot_rnd.modeling_rnd import RnDPolicy
-    from tests.helpers import make_policy
 
-    policy, meta = make_policy(toy_dataset_root, n_obs_steps=2)
-    pre, post = make_pre_post_processors(policy.config, dataset_stats=meta.stats)
-    ckpt = tmp_path / "ckpt"
-    for obj in (policy, pre, post):
-        obj.save_pretrained(ckpt)
+    _, _, ckpt = saved_policy(toy_dataset_root, tmp_path, n_obs_steps=2)
     seen = []
     original = RnDPolicy.predict_action_chunk
 
@@ -92,15 +91,7 @@ def test_delta_actions_compare_summed_steps(toy_dataset_root, tmp_path):
     """--delta-actions: the demo's displacement is the sum of its actions over the executed steps (here checked
     against the dataset's parquet, read with pandas), and the policy's is the sum of its chunk's executed steps."""
     import pandas as pd
-    from lerobot.policies.factory import make_pre_post_processors
-
-    from tests.helpers import make_policy
-
-    policy, meta = make_policy(toy_dataset_root)
-    pre, post = make_pre_post_processors(policy.config, dataset_stats=meta.stats)
-    ckpt = tmp_path / "ckpt"
-    for obj in (policy, pre, post):
-        obj.save_pretrained(ckpt)
+    policy, _, ckpt = saved_policy(toy_dataset_root, tmp_path)
     out = tmp_path / "cgr.json"
     assert cgr.main(["--policy-path", str(ckpt), "--dataset-root", str(toy_dataset_root), "--repo-id",
                      "local/toy_reach", "--frames", "0", "--draws", "2", "--delta-actions", "--out", str(out)]) == 0  # fmt: skip
