@@ -79,7 +79,7 @@ def test_the_task_token_separates_tasks_with_identical_observations(two_task_roo
     optimizer = torch.optim.AdamW(policy.get_optim_params(), lr=1e-3, weight_decay=0.0)
     generator = torch.Generator().manual_seed(0)
     policy.train()
-    for _ in range(300):
+    for _ in range(600):  # 300 steps left one task at agreement 0.4 on an AMD EPYC; 600 gave >= 0.76 for seeds 0-5
         idx = torch.randint(0, len(items), (8,), generator=generator)
         loss, _ = policy.forward({k: (v[idx] if isinstance(v, torch.Tensor) else [v[i] for i in idx])
                                   for k, v in data.items()})  # fmt: skip
