@@ -668,13 +668,15 @@ def panda_spatial_section() -> list[str]:
         "128 px) and a 60-degree wrist camera; the scripted expert approaches the object at 0.4 of full speed; "
         "evaluation on "
         "a 3 x 3 x 3 grid of cell centres over x, y and yaw (27 episodes per cell of the table, Wilson 95% "
-        "intervals); 3,000 training steps at batch 8; `policies_config/panda/`; "
+        "intervals); 3,000 training steps at batch 8; `policies_config/panda/` (R&D-AI with 16-px patches, chosen "
+        "on validation seeds 100-119); "
         f"[benchmarks/results/{PANDA_SPATIAL_FOLDER}](../benchmarks/results/{PANDA_SPATIAL_FOLDER}/"
         f"{'results.md' if (folder / 'results.md').exists() else 'runs/'})"
         + (f"; heat maps with the training placements marked: {', '.join(maps)}" if maps else "") + ". "
-        "Three earlier rounds are archived: `panda_spatial_raw_yaw` (demos sampled without the yaw symmetry), "
-        "`panda_spatial_camera_v1` (cameras that showed the cube 8-11 px wide) and `panda_spatial_fast_expert` (an "
-        "expert that made its whole approach within one action chunk).",
+        "Four earlier rounds are archived: `panda_spatial_raw_yaw` (demos sampled without the yaw symmetry), "
+        "`panda_spatial_camera_v1` (cameras that showed the cube 8-11 px wide), `panda_spatial_fast_expert` (an "
+        "expert that made its whole approach within one action chunk) and `panda_spatial_patch32` (R&D-AI with "
+        "32-px patches, which did not read the cube's position).",
         "",
         *table,
     ]

@@ -137,36 +137,28 @@ STATUS: dict[str, tuple[str, str]] = {
     "panda_spatial": (CURRENT, ("Issue 33, in progress: Panda lift-cube, spatial protocol (furthest-point demos from the "
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps, "
                       "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
-                      "of full speed: with 8 demos R&D-AI 4/27, ACT 4/27 (both the centre position at all three yaws "
-                      "and one more); on their own 8 demo placements (train_placements_lift-cube_n8.json) R&D-AI 1/8, "
-                      "ACT 7/8.")),
-    "trace_panda_lift_rnd_ai_n8.json": (CURRENT, ("Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos), closed "
-                                        "loop on validation seeds 100-119: 1/20; slope of its step-30 displacement on "
-                                        "the cube's offset x 0.47, y 0.10 (the demos: 1.01, 1.00): it follows the "
-                                        "cube's x, hardly its y.")),
+                      "of full speed, R&D-AI with 16-px patches: with 8 demos R&D-AI 21/27, ACT 4/27; on their own 8 "
+                      "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
+                      "the 16-px diagnostic run (outputs/diag/p16_work, its run JSON has the command), evaluated on "
+                      "the grid only after the patch size was chosen on validation seeds.")),
+    "trace_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos, "
+                                            "16-px patches), closed loop on validation seeds 100-119: 17/20; slope of "
+                                            "its step-30 displacement on the cube's offset x 0.97, y 0.74 (the demos: "
+                                            "1.01, 1.00). With 32-px patches 1/20 (archive/panda_spatial_patch32): "
+                                            "the patch size was chosen on this.")),
     "trace_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT lift-cube checkpoint (8 demos) on the same "
                                      "validation seeds: 2/20; slopes x -0.14, y 0.88: it follows the cube's y, not its "
                                      "x.")),
-    "chunk_goal_response_panda_lift_rnd_ai_n8.json": (CURRENT, ("The R&D-AI checkpoint on its own 8 demos, open loop "
-                                                      "(--delta-actions): slope of the executed chunk's summed motion on "
-                                                      "the demo's at frame 0 x 0.50, y 0.07; at frames 8 and 16 0.91-0.98: "
-                                                      "at the first frame, where only the cube tells the demos apart, it "
-                                                      "does not read the cube's y.")),
-    "chunk_goal_response_panda_lift_rnd_ai_n8_steps10.json": (CURRENT, ("The same with 10 denoising steps instead of 1: "
-                                                              "frame 0 x 0.58, y 0.09; the sampler is not the cause.")),
-    "chunk_goal_response_panda_lift_rnd_ai_n8_still.json": (CURRENT, ("The same with the current frame as its history "
-                                                            "frame too (--still-history): frame 8 x 0.89, y 0.90, as "
-                                                            "with its real history: it does not copy past motion.")),
-    "chunk_goal_response_panda_lift_rnd_ai_n8_p16_step2000.json": (CURRENT, ("Diagnostic: R&D-AI on the same 8 demos "
-                                                                "with 16-px patches instead of 32 (step 2,000 of a "
-                                                                "3,000-step run; its note has the command): first chunk "
-                                                                "at frame 0 x 0.92, y 0.47, against 0.50, 0.07 with "
-                                                                "32-px patches at step 3,000.")),
-    "chunk_goal_response_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("The same 16-px-patch diagnostic run at step 3,000 "
-                                                       "(outputs/diag/p16_work): first chunk at frame 0 x 0.87, y 0.53.")),
-    "train_placements_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("The 16-px-patch diagnostic run (step 3,000) on its "
-                                                        "own 8 demo placements: 5/8, against 1/8 for the shipped "
-                                                        "32-px patches and 7/8 for ACT.")),
+    "chunk_goal_response_panda_lift_rnd_ai_n8_p16_step2000.json": (CURRENT, ("The panda_spatial R&D-AI run (16-px "
+                                                                "patches) at step 2,000, on its own 8 demos, open loop "
+                                                                "(--delta-actions): first chunk at frame 0 x 0.92, y "
+                                                                "0.47, against 0.50, 0.07 with 32-px patches at step "
+                                                                "3,000 (archive/panda_spatial_patch32).")),
+    "chunk_goal_response_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("The same run at step 3,000: first chunk at frame 0 "
+                                                       "x 0.87, y 0.53.")),
+    "train_placements_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("The same run (step 3,000) on its own 8 demo "
+                                                        "placements, measured before the patch size was chosen: 5/8, "
+                                                        "against 1/8 with 32-px patches and 7/8 for ACT.")),
     "chunk_goal_response_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT checkpoint on its own demos: slopes "
                                                    "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
@@ -175,6 +167,12 @@ STATUS: dict[str, tuple[str, str]] = {
                                           "wrist camera sees it at three of the five, the gripper hides the two "
                                           "corners nearest the robot."),
     # ---- archived: superseded or exploratory ----
+    "panda_spatial_patch32": (ARCHIVED, ("Issue 33's fourth Panda round: lift-cube, 8 demos, 3,000 steps, R&D-AI with "
+                              "the MetaWorld CPU tier's 32-px patches: 4/27, ACT 4/27; own demo placements 1/8 "
+                              "against ACT's 7/8; validation seeds 1/20, slopes x 0.47, y 0.10; first chunk at frame "
+                              "0 x 0.50, y 0.07 (traces/, with 10 denoising steps and a still history too). "
+                              "Superseded: with 16-px patches 17/20 on the validation seeds; the Panda config now "
+                              "uses them (ACT's run stays current). See its NOTE.md.")),
     "panda_spatial_fast_expert": (ARCHIVED, ("Issue 33's third Panda round: lift-cube, 8 demos, 3,000 steps, re-framed "
                                   "cameras, R&D-AI only: 2/27; 0/20 on validation seeds with slopes x 0.03, y -0.01; on "
                                   "its own demos the first chunk's lateral motion has slope 0.01 (traces/). "

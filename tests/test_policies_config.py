@@ -68,18 +68,21 @@ def test_inference_benchmark_times_the_cpu_tier_that_training_builds():
 @pytest.mark.parametrize("suite", ["panda", "so101"])
 def test_suite_cpu_configs_mirror_the_metaworld_cpu_configs(suite):
     """policies_config/<suite>/*_cpu.json are the MetaWorld CPU configs (same model sizes and training settings) with
-    the suite's dataset and env: the benchmark compares the suites at one model size."""
+    the suite's dataset and env: the benchmark compares the suites at one model size. The one exception is the Panda
+    R&D's 16-px patches (its cube is 10-16 px wide; policies_config/README.md says why)."""
     import json
+
+    exceptions = {("panda", "rnd_ai_cpu.json"): {"patch_size": 16}}
 
     root = Path(__file__).resolve().parents[1] / "policies_config"
     names = sorted(p.name for p in (root / suite).glob("*.json"))
     assert names == ["act_cpu.json", "diffusion_cpu.json", "rnd_ai_cpu.json"]
     for name in names:
         mw, panda = (json.loads((root / d / name).read_text()) for d in ("metaworld", suite))
-        assert panda["policy"] == mw["policy"], name
+        assert panda["policy"] == {**mw["policy"], **exceptions.get((suite, name), {})}, name
         assert panda["env"]["type"] == f"rnd_{suite}" and panda["dataset"]["root"].startswith(f"data/{suite}_")
-        assert {k: v for k, v in panda.items() if k not in ("env", "dataset")} == \
-            {k: v for k, v in mw.items() if k not in ("env", "dataset")}  # fmt: skip
+        assert {k: v for k, v in panda.items() if k not in ("env", "dataset", "policy")} == \
+            {k: v for k, v in mw.items() if k not in ("env", "dataset", "policy")}  # fmt: skip
 
 
 def test_train_step_benchmark_takes_each_suites_config_and_dataset(tmp_path):
