@@ -163,9 +163,16 @@ STATUS: dict[str, tuple[str, str]] = {
                                                    "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
                                           "the centre and the four (x, y) corners of lift-cube's placement range "
-                                          "(benchmarks/panda_camera_views.py): front 10-16 px wide at 128 px; the "
+                                          "(benchmarks/camera_views.py): front 10-16 px wide at 128 px; the "
                                           "wrist camera sees it at three of the five, the gripper hides the two "
                                           "corners nearest the robot."),
+    "so101_camera_views_reach-target.json": (CURRENT, ("How large the ball appears in the simulated SO-101's cameras "
+                                             "at the start pose, at the centre and the four (x, y) corners of "
+                                             "reach-target's range (ball at mid height): front 8-10 px wide at 128 "
+                                             "px; the wrist camera sees it only at the centre.")),
+    "so101_camera_views_pick-cube.json": (CURRENT, ("The same for pick-cube's cube: front 10-15 px wide; the wrist "
+                                          "camera sees part of it at the centre and the two near corners, not at "
+                                          "the far ones.")),
     # ---- archived: superseded or exploratory ----
     "panda_spatial_patch32": (ARCHIVED, ("Issue 33's fourth Panda round: lift-cube, 8 demos, 3,000 steps, R&D-AI with "
                               "the MetaWorld CPU tier's 32-px patches: 4/27, ACT 4/27; own demo placements 1/8 "

@@ -34,7 +34,7 @@ HOME_QUAT = np.array([0.0, 1.0, 0.0, 0.0])
 START_POS = np.array([0.45, 0.0, 0.22])
 #: static front camera: position, the point it looks at and its vertical field of view, framed on the placement
 #: range (x 0.33-0.55, y +-0.15) with the gripper's start pose in view: at 128 px the 4 cm cube is 10-16 px wide
-#: (``benchmarks/panda_camera_views.py``; the first framing, 0.95 / 0.55 m away at fovy 50, gave it 8-11 px). The
+#: (``benchmarks/camera_views.py``; the first framing, 0.95 / 0.55 m away at fovy 50, gave it 8-11 px). The
 #: price is headroom: the finger tips leave the top of the image above z = 0.28-0.34 m (the start pose is at 0.22)
 FRONT_CAMERA_POS = (0.88, 0.0, 0.52)
 FRONT_CAMERA_LOOKAT = (0.44, 0.0, 0.09)

@@ -1,15 +1,19 @@
-"""How large the task object appears in the Panda suite's cameras, over the placement range.
+"""How large the task object appears in a simulated suite's cameras (Panda, SO-101), over the placement range.
 
-For the centre and the four (x, y) corners of a task's placement range (yaw 0; push-block and pick-place keep
-their target at the range's centre where that placement is valid, else the first valid one), resets
-``RnDPandaEnv`` there and, per camera at the start pose, projects the object's eight box corners with the
-camera's pinhole model (MuJoCo's ``fovy``, position and orientation, independent of the
-renderer) and reports the object's projected width in pixels, how many of its corners lie inside the image, and
-how many pixels of it are seen (MuJoCo's segmentation rendering: what the gripper hides is not counted).
-Writes a JSON table and a picture (one row per placement: front | wrist, the projected box outlined).
+For the centre and the four (x, y) corners of a task's placement range (the other placement coordinates at the
+range's centre: yaw 0, the SO-101 ball's middle height; push-block and pick-place keep their target at the range's
+centre where that placement is valid, else the first valid one), resets the suite's env there and, per camera at
+the start pose, projects the object's eight box corners (a ball: the eight corners of its camera-aligned bounding
+cube, taken in the plane through its centre) with the camera's pinhole model (MuJoCo's ``fovy``, position and
+orientation, independent of the renderer) and reports the object's projected width in pixels, how many of those
+points lie inside the image, and how many pixels of it are seen (MuJoCo's segmentation rendering: what the gripper
+hides is not counted). Writes a JSON table and a picture (one row per placement: front | wrist, the projected box
+outlined).
 
-    python benchmarks/panda_camera_views.py --task lift-cube --out docs/images/panda_lift_views.png \
+    python benchmarks/camera_views.py --task lift-cube --out docs/images/panda_lift_views.png \
         --json benchmarks/results/panda_camera_views_lift-cube.json
+    python benchmarks/camera_views.py --suite so101 --task reach-target --out docs/images/so101_reach_views.png \
+        --json benchmarks/results/so101_camera_views_reach-target.json
 """
 
 from __future__ import annotations
@@ -25,22 +29,34 @@ import numpy as np
 os.environ.setdefault("MUJOCO_GL", "egl")
 
 
-def object_box_geom(env) -> int:
-    """Geom id of the task object's (first) box: the cube, block or button housing."""
+#: the body of each task's object: its first box geom (a ball for SO-101 reach-target) is what is measured
+OBJECT_BODY = {
+    "lift-cube": "cube", "pick-place": "cube", "push-block": "block", "press-button": "button_box",  # Panda
+    "pick-cube": "cube", "reach-target": "target",  # SO-101
+}  # fmt: skip
+_BOX, _SPHERE = 6, 2  # mjGEOM_BOX, mjGEOM_SPHERE
+_SIGNS = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
+
+
+def object_geom(env) -> int:
+    """Geom id of the task object's first box (the cube, block or button housing), or its ball."""
     m = env.model
-    body = {"lift-cube": "cube", "pick-place": "cube", "push-block": "block", "press-button": "button_box"}[env.task]
-    bid = m.body(body).id
-    return next(g for g in range(m.ngeom) if m.geom_bodyid[g] == bid and m.geom_type[g] == 6)  # mjGEOM_BOX
+    bid = m.body(OBJECT_BODY[env.task]).id
+    return next(g for g in range(m.ngeom) if m.geom_bodyid[g] == bid and m.geom_type[g] in (_BOX, _SPHERE))
 
 
-def object_box_world(env) -> np.ndarray:
-    """(8, 3) world corners of the task object's box geom."""
+def object_points_world(env, T_world_cam: np.ndarray) -> np.ndarray:
+    """(8, 3) world points whose projection spans the object: a box's corners; for a ball, the corners of the
+    camera-aligned square through its centre (+-r along the camera's x and y), doubled to keep 8 rows."""
     m, d = env.model, env.data
-    gid = object_box_geom(env)
+    gid = object_geom(env)
+    centre = np.asarray(d.geom_xpos[gid], dtype=np.float64)
+    if m.geom_type[gid] == _SPHERE:
+        r = float(m.geom_size[gid][0])
+        return centre + (_SIGNS[:, :2] * r) @ T_world_cam[:3, :2].T
     half = np.asarray(m.geom_size[gid], dtype=np.float64)
-    signs = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64)
     R = np.asarray(d.geom_xmat[gid], dtype=np.float64).reshape(3, 3)
-    return np.asarray(d.geom_xpos[gid], dtype=np.float64) + (signs * half) @ R.T
+    return centre + (_SIGNS * half) @ R.T
 
 
 def project(K: np.ndarray, T_world_cam: np.ndarray, p_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -67,7 +83,6 @@ def camera_now(env, mujoco_camera: str, size: tuple[int, int]) -> tuple[np.ndarr
 def corner_placements(env) -> dict[str, np.ndarray]:
     low, high = (np.asarray(v, dtype=np.float64) for v in (env.placement_space.low, env.placement_space.high))
     centre = (low + high) / 2
-    centre[2] = 0.0
     out = {"centre": centre}
     for name, (ix, iy) in {"near-left": (1, 0), "near-right": (1, 1), "far-left": (0, 0), "far-right": (0, 1)}.items():
         p = centre.copy()
@@ -85,6 +100,7 @@ def corner_placements(env) -> dict[str, np.ndarray]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--suite", choices=("panda", "so101"), default="panda")
     ap.add_argument("--task", default="lift-cube")
     ap.add_argument("--image-size", type=int, default=128)
     ap.add_argument("--out", type=Path, required=True, help="PNG picture")
@@ -94,26 +110,27 @@ def main(argv: list[str] | None = None) -> int:
     import cv2
     import mujoco
 
-    from lerobot_rnd.sim.panda_env import RnDPandaEnv
-    from lerobot_rnd.sim.panda_scene import MUJOCO_CAMERAS
-
     size = (args.image_size, args.image_size)
-    env = RnDPandaEnv(args.task, observation_height=size[0], observation_width=size[1])
+    if args.suite == "panda":
+        from lerobot_rnd.sim.panda_env import RnDPandaEnv as Env
+    else:
+        from lerobot_rnd.sim.so101_env import RnDSO101Env as Env
+    env = Env(args.task, observation_height=size[0], observation_width=size[1])
     segmenter = mujoco.Renderer(env.model, *size)
     segmenter.enable_segmentation_rendering()
-    gid = object_box_geom(env)
+    gid = object_geom(env)
     rows, tiles = [], []
     for name, placement in corner_placements(env).items():
         obs, _ = env.reset(seed=0, options={"placement": placement})
-        box = object_box_world(env)
         row = {"placement": name, "object_xyz_yaw": [round(float(v), 4) for v in placement[:3]], "cameras": {}}
         imgs = []
         for cam in env.camera_names:
-            K, T_world_cam = camera_now(env, MUJOCO_CAMERAS[cam], size)
+            K, T_world_cam = camera_now(env, env.mujoco_camera_name(cam), size)
+            box = object_points_world(env, T_world_cam)
             uv, depth = project(K, T_world_cam, box)
             inside = (depth > 0) & np.all((uv >= -0.5) & (uv <= np.array(size[::-1]) - 0.5), axis=1)
-            width = float(uv[:, 0].max() - uv[:, 0].min()) if np.all(depth > 0) else 0.0
-            segmenter.update_scene(env.data, camera=MUJOCO_CAMERAS[cam])
+            width = float(uv[:, 0].max() - uv[:, 0].min()) if np.all(depth > 0) and inside.any() else 0.0
+            segmenter.update_scene(env.data, camera=env.mujoco_camera_name(cam))
             seg = segmenter.render()
             mask = (seg[..., 0] == gid) & (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM))
             seen = int(mask.sum())
@@ -127,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
             }
             img = np.ascontiguousarray(obs["pixels"][cam])
             img = cv2.resize(img, (256, 256), interpolation=cv2.INTER_NEAREST)
-            if np.all(depth > 0):
+            if width > 0:
                 s = 256 / args.image_size
                 x0, y0 = np.floor((uv.min(0) + 0.5) * s).astype(int)
                 x1, y1 = np.ceil((uv.max(0) + 0.5) * s).astype(int)
@@ -146,6 +163,7 @@ def main(argv: list[str] | None = None) -> int:
     out_json.parent.mkdir(parents=True, exist_ok=True)
     record = {
         "command": "python " + " ".join([sys.argv[0], *(argv if argv is not None else sys.argv[1:])]),
+        "suite": args.suite,
         "task": args.task,
         "image_size": args.image_size,
         "rows": rows,
