@@ -55,6 +55,9 @@ STATUS: dict[str, tuple[str, str]] = {
     "train_step_cpu_avx2.json": (CURRENT, "The same on an AVX2-only CPU (float32)."),
     "train_step_cpu_suites_avx2.json": (CURRENT, "R&D-AI and ACT training steps on SO-101 pick-cube demos beside "
                                         "MetaWorld door-close, one run on an idle AVX2 CPU (issue 34's cost question)."),
+    "train_step_panda_patch16.json": (CURRENT, ("The Panda R&D-AI config's 16-px patches against the MetaWorld "
+                                       "config's 32-px (otherwise equal) and ACT, one paired run on Panda lift-cube "
+                                       "8-demo data, idle AVX-512 bf16 CPU.")),
     "inference_cpu_tier_avx512.json": (CURRENT, "One action chunk at inference (batch 1): the shipped CPU tier (1 "
                                        "denoising step), ACT and Diffusion Policy in one run on an AVX-512 bf16 CPU."),
     "render_cpu.json": (CURRENT, "Rasteriser throughput on CPU (benchmarks/bench_render.py); the only measurement "
