@@ -83,11 +83,12 @@ def camera_now(env, mujoco_camera: str, size: tuple[int, int]) -> tuple[np.ndarr
 def corner_placements(env) -> dict[str, np.ndarray]:
     low, high = (np.asarray(v, dtype=np.float64) for v in (env.placement_space.low, env.placement_space.high))
     centre = (low + high) / 2
-    out = {"centre": centre}
-    for name, (ix, iy) in {"near-left": (1, 0), "near-right": (1, 1), "far-left": (0, 0), "far-right": (0, 1)}.items():
+    out = {}
+    corners = {"near-left": (1, 0), "near-right": (1, 1), "far-left": (0, 0), "far-right": (0, 1)}
+    for name, corner in {"centre": None, **corners}.items():
         p = centre.copy()
-        p[0] = (low[0], high[0])[ix]
-        p[1] = (low[1], high[1])[iy]
+        if corner is not None:
+            p[0], p[1] = low[0] if corner[0] == 0 else high[0], low[1] if corner[1] == 0 else high[1]
         if not env.is_valid_placement(p):
             rng = np.random.default_rng(0)
             for _ in range(2000):

@@ -170,6 +170,10 @@ STATUS: dict[str, tuple[str, str]] = {
                                           "(benchmarks/camera_views.py): front 10-16 px wide at 128 px; the "
                                           "wrist camera sees it at three of the five, the gripper hides the two "
                                           "corners nearest the robot."),
+    "panda_camera_views_push-block.json": (CURRENT, ("The same for push-block's block (the target moved where the "
+                                           "centre would put it on the block): front 13-18 px wide at 128 px; "
+                                           "the gripper hides most of it from the wrist camera at the far "
+                                           "corners.")),
     "so101_camera_views_reach-target.json": (CURRENT, ("How large the ball appears in the simulated SO-101's cameras "
                                              "at the start pose, at the centre and the four (x, y) corners of "
                                              "reach-target's range (ball at mid height): front 8-10 px wide at 128 "

@@ -7,6 +7,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("mujoco")
@@ -41,3 +42,20 @@ def test_projected_width_matches_rendered_width(tmp_path, suite, task, min_check
     # the front camera sees the object at every placement
     assert all(r["cameras"]["front"]["visible_px"] > 0 for r in record["rows"])
     assert checked >= min_checked
+
+
+@pytest.mark.parametrize("task", ["lift-cube", "push-block", "press-button", "pick-place"])
+def test_the_measured_placements_are_valid_and_put_the_object_at_the_centre_and_corners(task):
+    if importlib.util.find_spec("gym_hil") is None:
+        pytest.skip("pip install --no-deps gym_hil: the panda suite's assets")
+    from lerobot_rnd.sim.panda_env import RnDPandaEnv
+
+    env = RnDPandaEnv(task, observation_height=32, observation_width=32)
+    low, high = (np.asarray(v) for v in (env.placement_space.low, env.placement_space.high))
+    placements = camera_views.corner_placements(env)
+    assert list(placements) == ["centre", "near-left", "near-right", "far-left", "far-right"]
+    # push-block's centre puts its target on the block: the target must move, the object must not
+    assert all(env.is_valid_placement(p) for p in placements.values()), placements
+    np.testing.assert_allclose(placements["centre"][:3], ((low + high) / 2)[:3])
+    xy = {name: tuple(p[:2]) for name, p in placements.items() if name != "centre"}
+    assert set(xy.values()) == {(x, y) for x in (low[0], high[0]) for y in (low[1], high[1])}
