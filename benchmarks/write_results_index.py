@@ -166,6 +166,17 @@ STATUS: dict[str, tuple[str, str]] = {
                                                         "against 1/8 with 32-px patches and 7/8 for ACT.")),
     "chunk_goal_response_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT checkpoint on its own demos: slopes "
                                                    "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
+    "trace_panda_push_rnd_ai_n8.json": (CURRENT, ("The panda_spatial R&D-AI push-block checkpoint (8 demos) on "
+                                        "validation seeds 100-119: 0/20; at step 30 its gripper's displacement does "
+                                        "not follow the block (slopes x -0.05, y -0.06; the demos 1.32, 1.40).")),
+    "chunk_goal_response_panda_push_rnd_ai_n8.json": (CURRENT, ("The same checkpoint on its own demos: the first "
+                                                      "chunk ignores the block (slopes x -0.03, y -0.01 at frame "
+                                                      "0; lift-cube's run 0.87, 0.53) and follows the demos once "
+                                                      "the arm has moved (0.76, 0.90 at frame 8).")),
+    "chunk_goal_response_panda_push_rnd_ai_n8_still.json": (CURRENT, ("The same with the past frame replaced by the "
+                                                            "current one (--still-history): the same slopes, so "
+                                                            "it does not copy the motion in its history; what "
+                                                            "differs by frame 8 is where the arm is.")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
                                           "the centre and the four (x, y) corners of lift-cube's placement range "
                                           "(benchmarks/camera_views.py): front 10-16 px wide at 128 px; the "
