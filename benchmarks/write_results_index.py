@@ -142,7 +142,7 @@ STATUS: dict[str, tuple[str, str]] = {
                       "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
                       "of full speed, R&D-AI with 16-px patches: with 8 demos R&D-AI 21/27, ACT 4/27; with 2 demos "
                       "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27 (ACT running); push-block with 8 demos "
-                      "R&D-AI 0/27 (ACT running); on their own 8 "
+                      "R&D-AI 0/27, ACT 3/27; on their own 8 "
                       "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
                       "the 16-px diagnostic run (outputs/diag/p16_work, its run JSON has the command), evaluated on "
                       "the grid only after the patch size was chosen on validation seeds.")),
