@@ -143,7 +143,8 @@ STATUS: dict[str, tuple[str, str]] = {
                       "of full speed, R&D-AI with 16-px patches: with 8 demos R&D-AI 21/27, ACT 4/27; with 2 demos "
                       "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27 (ACT running); push-block with 8 demos "
                       "R&D-AI 0/27, ACT 3/27; on their own 8 "
-                      "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
+                      "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8; push-block's "
+                      "(train_placements_push-block_n8.json) R&D-AI 0/8, ACT 1/8. The R&D-AI run is "
                       "the 16-px diagnostic run (outputs/diag/p16_work, its run JSON has the command), evaluated on "
                       "the grid only after the patch size was chosen on validation seeds.")),
     "trace_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos, "
@@ -173,6 +174,11 @@ STATUS: dict[str, tuple[str, str]] = {
                                                       "chunk ignores the block (slopes x -0.03, y -0.01 at frame "
                                                       "0; lift-cube's run 0.87, 0.53) and follows the demos once "
                                                       "the arm has moved (0.76, 0.90 at frame 8).")),
+    "chunk_goal_response_panda_push_act_n8.json": (CURRENT, ("The panda_spatial ACT push-block checkpoint on its "
+                                                   "own demos: slopes x 0.49, y 0.52 at frame 0 (lift-cube's "
+                                                   "ACT 1.05), 1.1-1.3 from frame 8; on its own 8 demo "
+                                                   "placements it succeeds at 1 "
+                                                   "(panda_spatial/train_placements_push-block_n8.json).")),
     "chunk_goal_response_panda_push_rnd_ai_n8_still.json": (CURRENT, ("The same with the past frame replaced by the "
                                                             "current one (--still-history): the same slopes, so "
                                                             "it does not copy the motion in its history; what "
