@@ -179,6 +179,12 @@ STATUS: dict[str, tuple[str, str]] = {
                                                    "ACT 1.05), 1.1-1.3 from frame 8; on its own 8 demo "
                                                    "placements it succeeds at 1 "
                                                    "(panda_spatial/train_placements_push-block_n8.json).")),
+    "chunk_goal_response_panda_push_rnd_ai_n8_seed1.json": (CURRENT, ("A second R&D-AI push-block run (training "
+                                                            "seed 1, run_benchmark.py --seed 1 --train-only, "
+                                                            "never evaluated on the test grid) on its demos: "
+                                                            "frame 0 slopes x -0.03, y -0.03 again.")),
+    "trace_panda_push_rnd_ai_n8_seed1.json": (CURRENT, ("The seed-1 run on validation seeds 100-119: 0/20, step-30 "
+                                              "slopes x -0.06, y 0.13.")),
     "chunk_goal_response_panda_push_rnd_ai_n8_still.json": (CURRENT, ("The same with the past frame replaced by the "
                                                             "current one (--still-history): the same slopes, so "
                                                             "it does not copy the motion in its history; what "
