@@ -2,7 +2,7 @@
 
 For the centre and the four (x, y) corners of a task's placement range (the other placement coordinates at the
 range's centre: yaw 0, the SO-101 ball's middle height; push-block and pick-place keep their target at the range's
-centre where that placement is valid, else the first valid one), resets the suite's env there and, per camera at
+centre where that placement is valid, else seeded draws as the benchmark's grid: ``complete_placement``), resets the suite's env there and, per camera at
 the start pose, projects the object's eight box corners (a ball: the eight corners of its camera-aligned bounding
 cube, taken in the plane through its centre) with the camera's pinhole model (MuJoCo's ``fovy``, position and
 orientation, independent of the renderer) and reports the object's projected width in pixels, how many of those
@@ -25,6 +25,8 @@ import sys
 from pathlib import Path
 
 import numpy as np
+
+from lerobot_rnd.sim.placements import complete_placement
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -89,13 +91,8 @@ def corner_placements(env) -> dict[str, np.ndarray]:
         p = centre.copy()
         if corner is not None:
             p[0], p[1] = low[0] if corner[0] == 0 else high[0], low[1] if corner[1] == 0 else high[1]
-        if not env.is_valid_placement(p):
-            rng = np.random.default_rng(0)
-            for _ in range(2000):
-                p[3:] = rng.uniform(low[3:], high[3:])
-                if env.is_valid_placement(p):
-                    break
-        out[name] = p
+        valid = complete_placement(env, p, dims=(0, 1, 2), rng=np.random.default_rng(0))  # a target that fits
+        out[name] = p if valid is None else valid
     return out
 
 
