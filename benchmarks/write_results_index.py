@@ -185,6 +185,9 @@ STATUS: dict[str, tuple[str, str]] = {
                                                             "frame 0 slopes x -0.03, y -0.03 again.")),
     "trace_panda_push_rnd_ai_n8_seed1.json": (CURRENT, ("The seed-1 run on validation seeds 100-119: 0/20, step-30 "
                                               "slopes x -0.06, y 0.13.")),
+    "chunk_goal_response_panda_push_rnd_ai_n8_steps10.json": (CURRENT, ("The seed-0 checkpoint sampling with 10 "
+                                                              "denoising steps instead of 1, frame 0 only: slopes "
+                                                              "x -0.04, y -0.02, so the sampler is not the cause.")),
     "chunk_goal_response_panda_push_rnd_ai_n8_still.json": (CURRENT, ("The same with the past frame replaced by the "
                                                             "current one (--still-history): the same slopes, so "
                                                             "it does not copy the motion in its history; what "
