@@ -1,8 +1,8 @@
 """How large the task object appears in a simulated suite's cameras (Panda, SO-101), over the placement range.
 
 For the centre and the four (x, y) corners of a task's placement range (the other placement coordinates at the
-range's centre: yaw 0, the SO-101 ball's middle height; push-block and pick-place keep their target at the range's
-centre where that placement is valid, else seeded draws as the benchmark's grid: ``complete_placement``), resets the suite's env there and, per camera at
+range's centre: yaw 0, the SO-101 ball's middle height; push-block and pick-place draw their target with a seeded
+generator until valid, as the benchmark's grid: ``complete_placement``), resets the suite's env there and, per camera at
 the start pose, projects the object's eight box corners (a ball: the eight corners of its camera-aligned bounding
 cube, taken in the plane through its centre) with the camera's pinhole model (MuJoCo's ``fovy``, position and
 orientation, independent of the renderer) and reports the object's projected width in pixels, how many of those

@@ -673,39 +673,16 @@ def panda_spatial_section() -> list[str]:
         f"[benchmarks/results/{PANDA_SPATIAL_FOLDER}](../benchmarks/results/{PANDA_SPATIAL_FOLDER}/"
         f"{'results.md' if (folder / 'results.md').exists() else 'runs/'})"
         + (f"; heat maps with the training placements marked: {', '.join(maps)}" if maps else "") + ". "
-        "Four earlier rounds are archived: `panda_spatial_raw_yaw` (demos sampled without the yaw symmetry), "
+        "Push-block's and pick-place's target is drawn at random (seeded) for demos and test cells alike. Five "
+        "earlier rounds are archived: `panda_spatial_raw_yaw` (demos sampled without the yaw symmetry), "
         "`panda_spatial_camera_v1` (cameras that showed the cube 8-11 px wide), `panda_spatial_fast_expert` (an "
-        "expert that made its whole approach within one action chunk) and `panda_spatial_patch32` (R&D-AI with "
-        "32-px patches, which did not read the cube's position)." + push_target_sentence(folder),
+        "expert that made its whole approach within one action chunk), `panda_spatial_patch32` (R&D-AI with "
+        "32-px patches, which did not read the cube's position) and `panda_spatial_push_centre_target` "
+        "(push-block with the target at the centre of its range where valid: most demos pushed to the centre, "
+        "most test cells did not).",
         "",
         *table,
     ]
-
-
-def push_target_sentence(folder: Path) -> str:
-    """How many of push-block's demos and test cells put the target at the centre of its range (the harness's
-    rule: the centre where valid, else seeded draws), from the folder's results.json; '' without push-block."""
-    results = _load(folder / "results.json") or {}
-    grid = (results.get("eval_sets") or {}).get("push-block")
-    demos = (results.get("datasets") or {}).get("push-block") or {}
-    if not grid or not demos:
-        return ""
-    from lerobot_rnd.sim.panda_env import PLACEMENT_RANGES
-
-    largest = demos[max(demos, key=int)]
-    low, high = PLACEMENT_RANGES["push-block"]
-    centre = (low[3:] + high[3:]) / 2  # the target's (x, y)
-
-    def at_centre(placements) -> int:
-        return sum(bool(abs(p[3] - centre[0]) < 1e-6 and abs(p[4] - centre[1]) < 1e-6) for p in placements)
-
-    return (
-        f" Push-block's target sits at the centre of its range where that is valid, else is drawn at random: "
-        f"{at_centre(largest['placements'])} of its {len(largest['placements'])} furthest-point demos push to the "
-        f"centre (their blocks lie at the range's edges), {at_centre(grid['placements'])} of the "
-        f"{len(grid['placements'])} test cells do; the demos and the test cells must share one target rule before "
-        "push-block's other demo counts run."
-    )
 
 
 def current_block() -> list[str]:

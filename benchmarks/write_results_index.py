@@ -141,10 +141,10 @@ STATUS: dict[str, tuple[str, str]] = {
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps, "
                       "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
                       "of full speed, R&D-AI with 16-px patches: with 8 demos R&D-AI 21/27, ACT 4/27; with 2 demos "
-                      "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27 (ACT running); push-block with 8 demos "
-                      "R&D-AI 0/27, ACT 3/27; on their own 8 "
-                      "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8; push-block's "
-                      "(train_placements_push-block_n8.json) R&D-AI 0/8, ACT 1/8. The R&D-AI run is "
+                      "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27 (ACT running); push-block's runs start over with "
+                      "targets drawn at random for demos and test cells alike (archive/panda_spatial_push_centre_target); "
+                      "on their own 8 "
+                      "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
                       "the 16-px diagnostic run (outputs/diag/p16_work, its run JSON has the command), evaluated on "
                       "the grid only after the patch size was chosen on validation seeds.")),
     "trace_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos, "
@@ -167,38 +167,13 @@ STATUS: dict[str, tuple[str, str]] = {
                                                         "against 1/8 with 32-px patches and 7/8 for ACT.")),
     "chunk_goal_response_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT checkpoint on its own demos: slopes "
                                                    "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
-    "trace_panda_push_rnd_ai_n8.json": (CURRENT, ("The panda_spatial R&D-AI push-block checkpoint (8 demos) on "
-                                        "validation seeds 100-119: 0/20; at step 30 its gripper's displacement does "
-                                        "not follow the block (slopes x -0.05, y -0.06; the demos 1.32, 1.40).")),
-    "chunk_goal_response_panda_push_rnd_ai_n8.json": (CURRENT, ("The same checkpoint on its own demos: the first "
-                                                      "chunk ignores the block (slopes x -0.03, y -0.01 at frame "
-                                                      "0; lift-cube's run 0.87, 0.53) and follows the demos once "
-                                                      "the arm has moved (0.76, 0.90 at frame 8).")),
-    "chunk_goal_response_panda_push_act_n8.json": (CURRENT, ("The panda_spatial ACT push-block checkpoint on its "
-                                                   "own demos: slopes x 0.49, y 0.52 at frame 0 (lift-cube's "
-                                                   "ACT 1.05), 1.1-1.3 from frame 8; on its own 8 demo "
-                                                   "placements it succeeds at 1 "
-                                                   "(panda_spatial/train_placements_push-block_n8.json).")),
-    "chunk_goal_response_panda_push_rnd_ai_n8_seed1.json": (CURRENT, ("A second R&D-AI push-block run (training "
-                                                            "seed 1, run_benchmark.py --seed 1 --train-only, "
-                                                            "never evaluated on the test grid) on its demos: "
-                                                            "frame 0 slopes x -0.03, y -0.03 again.")),
-    "trace_panda_push_rnd_ai_n8_seed1.json": (CURRENT, ("The seed-1 run on validation seeds 100-119: 0/20, step-30 "
-                                              "slopes x -0.06, y 0.13.")),
-    "chunk_goal_response_panda_push_rnd_ai_n8_steps10.json": (CURRENT, ("The seed-0 checkpoint sampling with 10 "
-                                                              "denoising steps instead of 1, frame 0 only: slopes "
-                                                              "x -0.04, y -0.02, so the sampler is not the cause.")),
-    "chunk_goal_response_panda_push_rnd_ai_n8_still.json": (CURRENT, ("The same with the past frame replaced by the "
-                                                            "current one (--still-history): the same slopes, so "
-                                                            "it does not copy the motion in its history; what "
-                                                            "differs by frame 8 is where the arm is.")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
                                           "the centre and the four (x, y) corners of lift-cube's placement range "
                                           "(benchmarks/camera_views.py): front 10-16 px wide at 128 px; the "
                                           "wrist camera sees it at three of the five, the gripper hides the two "
                                           "corners nearest the robot."),
-    "panda_camera_views_push-block.json": (CURRENT, ("The same for push-block's block (the target moved where the "
-                                           "centre would put it on the block): front 13-18 px wide at 128 px; "
+    "panda_camera_views_push-block.json": (CURRENT, ("The same for push-block's block (its target drawn at random, "
+                                           "seeded, as in the benchmark): front 13-18 px wide at 128 px; "
                                            "the gripper hides most of it from the wrist camera at the far "
                                            "corners.")),
     "so101_camera_views_reach-target.json": (CURRENT, ("How large the ball appears in the simulated SO-101's cameras "
@@ -209,6 +184,13 @@ STATUS: dict[str, tuple[str, str]] = {
                                           "camera sees part of it at the centre and the two near corners, not at "
                                           "the far ones.")),
     # ---- archived: superseded or exploratory ----
+    "panda_spatial_push_centre_target": (ARCHIVED, ("Issue 33's first push-block round (8 demos, 3,000 steps, the "
+                                         "current set-up otherwise): R&D-AI 0/27, ACT 3/27; own demo placements "
+                                         "0/8 and 1/8; R&D-AI's first chunk ignored the block (traces/, also for "
+                                         "a second seed, 10 denoising steps and a still history). Superseded: the "
+                                         "target sat at the centre of its range where valid, so 6 of 8 demos but "
+                                         "only 6 of 27 test cells pushed to the centre (ACT's 3 successes all "
+                                         "there); targets are now drawn at random for both. See its NOTE.md.")),
     "panda_spatial_patch32": (ARCHIVED, ("Issue 33's fourth Panda round: lift-cube, 8 demos, 3,000 steps, R&D-AI with "
                               "the MetaWorld CPU tier's 32-px patches: 4/27, ACT 4/27; own demo placements 1/8 "
                               "against ACT's 7/8; validation seeds 1/20, slopes x 0.47, y 0.10; first chunk at frame "

@@ -163,9 +163,17 @@ def test_fps_centre_sequence_starts_at_the_centre_and_spreads_position_and_yaw()
     assert {bool(s) for s in spread[:, 2] > 0.5} == {True, False}  # both signs of yaw
     again = PlacementSequence(env, "fps-centre", seed=0, fps_pool=300)
     np.testing.assert_array_equal(np.array([again[i] for i in range(9)]), np.array([seq[i] for i in range(9)]))
-    # the target stays at the centre of its range where that is valid
-    far = complete_placement(env, np.array([0.54, 0.12, 0.0, 0.0, 0.0]), (0, 1, 2), np.random.default_rng(0))
-    np.testing.assert_allclose(far[3:], [0.45, 0.0])
+    # the target is drawn at random even where the centre of its range would be valid (demos at the range's edges
+    # and test cells near its centre then get targets from one distribution), the object kept
+    far = [complete_placement(env, np.array([0.54, 0.12, 0.0, 0.0, 0.0]), (0, 1, 2), np.random.default_rng(k))
+           for k in range(200)]  # fmt: skip
+    assert all(env.is_valid_placement(p) for p in far)
+    np.testing.assert_allclose(np.array(far)[:, :3], np.tile([0.54, 0.12, 0.0], (200, 1)))
+    targets = np.array(far)[:, 3:]
+    assert len(np.unique(targets.round(9), axis=0)) == 200
+    # uniform over the valid targets: about as often in each half of the target's x and y range
+    mid = (lo + hi)[3:] / 2
+    assert 0.3 < np.mean(targets[:, 0] < mid[0]) < 0.7 and 0.3 < np.mean(targets[:, 1] < mid[1]) < 0.7
 
 
 def test_panda_grid_varies_x_y_and_yaw_in_at_least_25_cells(tmp_path):
@@ -237,3 +245,62 @@ def test_3d_heat_map_draws_one_xy_map_per_yaw(tmp_path):
     assert titles[5] == "ACT, 2 demos, yaw +30°: 33% of 9"
     reports.plot_heatmap(res, "push-block", tmp_path / "via_dispatch.png")  # plot_heatmap hands 3-D grids over
     assert (tmp_path / "via_dispatch.png").exists()
+
+
+def test_a_reused_dataset_recorded_with_another_placement_rule_is_refused(tmp_path):
+    """The benchmark reuses a complete dataset by name; one whose logged placements are not those the recorder
+    draws today (push-block's former rule: the target at the centre of its range where valid) must not be
+    trained on silently."""
+    _needs_panda()
+    import json
+
+    from lerobot_rnd.sim.panda_env import RnDPandaEnv
+
+    a = cli.parse_args(["--suite", "panda", "--scale", "cpu", "--protocol", "spatial", "--tasks", "push-block",
+                        "--out", str(tmp_path / "o"), "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip
+    env = RnDPandaEnv("push-block")
+    try:
+        seq = PlacementSequence(env, "fps-centre", seed=0)
+        today = [seq[i] for i in range(3)]
+    finally:
+        env.close()
+    settings = {"task": "push-block", "placements": "fps-centre", "seed": 0, "fps_pool": 1000}
+
+    def write(root, placements):
+        (root / "meta").mkdir(parents=True)
+        log = {"settings": settings, "attempts": [
+            {"task": "push-block", "placement_index": i, "placement": [float(v) for v in p], "success": True,
+             "episode_index": i} for i, p in enumerate(placements)]}  # fmt: skip
+        (root / "meta" / "rnd_recording.json").write_text(json.dumps(log))
+        return root
+
+    Benchmark(a)._check_reused_placements("push-block", write(tmp_path / "same", today))  # passes
+    old_rule = [np.r_[p[:3], 0.45, 0.0] if np.linalg.norm(p[:2] - [0.45, 0.0]) >= 0.1 else p for p in today]
+    assert any(not np.allclose(o, t) for o, t in zip(old_rule, today, strict=True))
+    with pytest.raises(RuntimeError, match="old.*remove"):
+        Benchmark(a)._check_reused_placements("push-block", write(tmp_path / "old", old_rule))
+
+
+def test_a_run_trained_on_other_placements_than_its_dataset_now_holds_is_not_resumed_or_collected(tmp_path):
+    """A run remembers a fingerprint of its demos' and evaluation placements; when the dataset is recorded again
+    (or the grid changes) its finished or part-done state must not be carried into the new results."""
+    import json
+
+    a = cli.parse_args(["--suite", "panda", "--scale", "cpu", "--protocol", "spatial", "--tasks", "push-block",
+                        "--demos", "8", "--methods", "act", "--resume", "--out", str(tmp_path / "o"),
+                        "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")])  # fmt: skip
+    b = Benchmark(a)
+    demos = [[0.45, 0.0, 0.0, 0.53, 0.165], [0.36, 0.11, -0.76, 0.46, -0.03]]
+    b.datasets = {"push-block": {8: {"placements": demos}}}
+    b.eval_sets = {"push-block": {"placements": [[0.39, -0.08, -0.52, 0.5, 0.1]]}}
+    rdir = b.run_dir("act", "push-block", 8, 0)
+    rdir.mkdir(parents=True)
+    (rdir / "run.json").write_text(json.dumps({"status": "failed", "inputs_sha1": b.inputs_sha1("push-block", 8)}))
+    b.run_one("act", "push-block", 8, 0)  # the same inputs: its state is used (a failed run is left alone)
+    assert b.failed
+    # the demos 1e-12 apart are the same placements; another target is not
+    b.datasets["push-block"][8]["placements"] = [[v + 1e-12 for v in p] for p in demos]
+    b.run_one("act", "push-block", 8, 0)
+    b.datasets["push-block"][8]["placements"] = [demos[0], [0.36, 0.11, -0.76, 0.45, 0.0]]
+    with pytest.raises(SystemExit, match="other placements.*move"):
+        b.run_one("act", "push-block", 8, 0)

@@ -211,26 +211,3 @@ def test_panda_spatial_section_shows_only_finished_cells_and_the_heat_maps_that_
     assert "| ACT | not run yet |" in text and "heat maps" not in text
     (tmp_path / w.PANDA_SPATIAL_FOLDER / "heatmap_lift-cube.png").write_bytes(b"png")
     assert "heatmap_lift-cube.png" in "\n".join(w.panda_spatial_section())
-
-
-def test_push_target_sentence_counts_centre_targets_of_the_largest_demo_set_and_the_grid(tmp_path):
-    import json
-
-    from benchmarks.write_benchmarks_md import push_target_sentence
-
-    centre, off = [0.45, 0.0], [0.53, 0.165]  # the target range's centre (x 0.32-0.58, y -0.2-0.2), another
-
-    def pb(target):
-        return [0.4, 0.1, 0.3, *target]
-
-    res = {
-        "datasets": {"push-block": {"2": {"placements": [pb(off), pb(centre)]},
-                                    "16": {"placements": [pb(centre)] * 3 + [pb(off)] * 13},
-                                    "4": {"placements": [pb(centre)] * 4}}},
-        "eval_sets": {"push-block": {"placements": [pb(centre), pb([0.45, 0.001]), pb(off)]}},
-    }  # fmt: skip
-    (tmp_path / "results.json").write_text(json.dumps(res))
-    text = push_target_sentence(tmp_path)
-    assert "3 of its 16 furthest-point demos" in text and "1 of the 3 test cells" in text
-    (tmp_path / "results.json").write_text(json.dumps({"eval_sets": {"lift-cube": {"placements": []}}}))
-    assert push_target_sentence(tmp_path) == ""

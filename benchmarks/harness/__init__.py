@@ -46,7 +46,7 @@ an in-process copy of lerobot-eval's loop (``rnd_mw`` takes no placement list on
 Panda suite (--suite panda; smoke and cpu scales): records with ``lerobot-rnd-record --suite panda``, trains from
 policies_config/panda/*_cpu.json, evaluates with ``--env.type=rnd_panda`` (120-step episodes). Its spatial protocol
 records demos by furthest point sampling over the object's x, y and yaw (modulo its 90-degree symmetry) starting from the centre of the range
-(``--placements fps-centre``; a target at the centre of its range where valid, else seeded draws) and evaluates on a
+(``--placements fps-centre``; a target drawn at random, seeded, for demos and grid cells alike) and evaluates on a
 G x G x --grid-yaws grid over x, y and yaw (default 3 x 3 x 3 = 27 cell centres), one x-y heat map per yaw.
 
 SO-101 suite (--suite so101; smoke and cpu scales): records with ``lerobot-rnd-record --suite so101``, replaces each

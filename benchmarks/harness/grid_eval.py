@@ -34,10 +34,10 @@ def grid_description(layout: str, others: str, eval_seed: int) -> str:
              "G points per coordinate from one end of the placement range to the other")  # fmt: skip
     rest = ("the other coordinates at the centre of their range (a cell whose placement is invalid is skipped)"
             if others == "centre" else
-            "the other coordinates (push-block / pick-place: the target x, y) at the centre of their range when "
-            "valid, else drawn uniformly from their range until valid with numpy.random.default_rng(eval_seed + "
-            f"cell index) (eval_seed {eval_seed}; the recording seed's generator never draws these); a cell with "
-            "no valid placement is skipped")  # fmt: skip
+            "the other coordinates (push-block / pick-place: the target x, y) drawn uniformly from their range "
+            "until valid with numpy.random.default_rng(eval_seed + cell index) (eval_seed "
+            f"{eval_seed}; the recording seed's generator never draws these); a cell with no valid placement is "
+            "skipped")  # fmt: skip
     return (f"grid over two or three placement coordinates (eval_sets: grid_dims; third = yaw for Panda), {where}; "
             f"{rest}; one episode per cell, all with the seed eval_seed")
 
@@ -51,7 +51,7 @@ def grid_placements(env, task: str, low, high, grid: int, grid_dims: list[int] |
 
     ``layout``: "edges" (grid values from one end of the range to the other) or "cells" (cell centres), see
     :func:`grid_axis`. ``others`` (the coordinates not in the grid): "centre" (the centre of their range; a cell
-    whose placement is then invalid is skipped) or "seeded" (the centre if valid, else drawn uniformly with
+    whose placement is then invalid is skipped) or "seeded" (those that vary drawn uniformly with
     ``numpy.random.default_rng(eval_seed + cell index)`` until valid: ``lerobot_rnd.sim.placements.complete_placement``;
     a cell with no valid placement is skipped). ``cells`` holds [iy, ix] (two dims) or [iy, ix, iz] (three) per
     placement, ``n_invalid`` the cells skipped."""

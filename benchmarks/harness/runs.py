@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import hashlib
+import json
 import math
 import os
 import platform
@@ -32,10 +33,9 @@ DEMO_PLACEMENTS = {
     "fps-centre": "lerobot-rnd-record --placements fps-centre: furthest point sampling over the object's x, y and "
                   "yaw (scaled to their range; yaw compared modulo the object's 90-degree symmetry), starting at the centre of the range; pool = the centre + 999 "
                   "uniform draws with the recording seed; the other coordinates (push-block / pick-place: the "
-                  "target x, y) at the centre of their range when valid (the target must be 10 cm or more from the "
-                  "object, and push-block's 22 cm or less: the centre is valid for objects 10-22 cm from it), else "
-                  "drawn uniformly from their range with the recording seed's generator until the placement is "
-                  "valid",
+                  "target x, y) drawn uniformly from their range with the recording seed's generator until the "
+                  "placement is valid (the target 10 cm or more from the object, push-block's 22 cm or less), as "
+                  "the random protocol draws them",
 }  # fmt: skip
 
 
@@ -150,6 +150,8 @@ class Benchmark:
                     raise RuntimeError(f"recording {root} failed (rc {r.rc}):\n{r.tail}")
             from lerobot_rnd.sim.record import recorded_env_args, recorded_setting
 
+            if have >= n and len(unit_tasks(task)) == 1 and not a.dry_run:
+                self._check_reused_placements(task, root)
             if self.suite.get("calibration"):
                 self.calibrate(root)
             rec = _read_json(root / "meta" / "rnd_recording.json", {}) or {}
@@ -192,6 +194,30 @@ class Benchmark:
                     f"their policies would not see the same cameras; record {b['root']} again as an extension of "
                     f"{s['root']} (remove it and rerun: the benchmark copies the smaller set and resumes it)"
                 )
+
+    def _check_reused_placements(self, task: str, root: Path) -> None:
+        """A complete dataset the benchmark reuses must hold the placements its recorder would draw today (else
+        its runs would train on demos of another placement rule, e.g. push-block's former centre target): raises
+        naming the dataset and the fix."""
+        from lerobot_rnd.sim.placements import PlacementSequence
+        from lerobot_rnd.sim.record import RecordSettings, _check_same_placements, attempt_task
+
+        log = _read_json(root / "meta" / "rnd_recording.json", {}) or {}
+        st = log.get("settings") or {}
+        s = RecordSettings(task=task, placements=st.get("placements", self.placements_mode()),
+                           seed=int(st.get("seed", self.a.record_seed)),
+                           fps_pool=int(st.get("fps_pool", RecordSettings.fps_pool)))  # fmt: skip
+        if s.placements != self.placements_mode() or s.seed != self.a.record_seed:
+            raise RuntimeError(f"{root} was recorded with --placements {s.placements} --seed {s.seed}, not "
+                               f"{self.placements_mode()} / {self.a.record_seed}: remove it and rerun")  # fmt: skip
+        attempts = [x for x in log.get("attempts", []) if attempt_task(x, st) == task]
+        env = self.make_env(task)
+        try:
+            _check_same_placements(attempts, PlacementSequence(env, s.placements, s.seed, s.fps_pool), root, s)
+        except Exception as e:
+            raise RuntimeError(f"{e} (the benchmark records it again once it is removed)") from e
+        finally:
+            env.close()
 
     # ------------------------------------------------------------------ measured calibration (so101)
     def calibrate(self, root) -> None:
@@ -542,6 +568,21 @@ class Benchmark:
             return EXIT_MORE
         return EXIT_FAILED if self.failed else EXIT_OK
 
+    def inputs_sha1(self, task: str, n: int) -> str:
+        """Fingerprint of what a run of unit ``task`` with ``n`` demos trains and is evaluated on: its demos' placements
+        and its tasks' evaluation placements (rounded to 1e-9), so a resumed or collected run is never mixed with
+        re-recorded data or a changed grid."""
+        import numpy as np
+
+        def rounded(placements):
+            return np.round(np.asarray(placements, dtype=np.float64), 9).tolist() if placements else placements
+
+        d = self.datasets.get(task, {}).get(n, {})
+        by_task = d.get("placements_by_task")
+        demos = {t: rounded(v) for t, v in by_task.items()} if by_task else rounded(d.get("placements"))
+        evals = {t: rounded(self.eval_set(t)["placements"]) for t in unit_tasks(task)}
+        return hashlib.sha1(json.dumps([demos, evals], sort_keys=True).encode()).hexdigest()[:16]
+
     def result_path(self, method: str, task: str, n: int, seed: int) -> Path:
         """The committed JSON of one finished run (survives a fresh clone; the work dir does not)."""
         return self.out / "runs" / f"{method}__{unit_name(task)}__n{n}__seed{seed}.json"
@@ -599,6 +640,13 @@ class Benchmark:
         a = self.a
         rdir = self.run_dir(method, task, n, seed)
         st = self.run_state(method, task, n, seed)
+        inputs = self.inputs_sha1(task, n)
+        if st.get("inputs_sha1") not in (None, inputs) and not a.dry_run:
+            raise SystemExit(
+                f"{method} / {task} / n{n} / seed {seed} was trained or evaluated on other placements than its dataset "
+                f"and evaluation set hold now (the dataset was recorded again, or the placement rule changed): move "
+                f"{_rel(rdir)} and {_rel(self.result_path(method, task, n, seed))} away (archive the result) to run it "
+                "again")  # fmt: skip
         if st.get("status") == "done" and not a.dry_run:
             self._reread_loss_curve(rdir, st, self.result_path(method, task, n, seed))
             return
@@ -611,7 +659,7 @@ class Benchmark:
                   "--resume", flush=True)  # fmt: skip
             return
         st.update(method=method, task=task, demos=n, seed=seed, protocol=a.protocol, scale=a.scale, suite=self.suite_name,
-                  status="running", code_commit=st.get("code_commit") or git_commit())  # fmt: skip
+                  status="running", code_commit=st.get("code_commit") or git_commit(), inputs_sha1=inputs)  # fmt: skip
         if len(unit_tasks(task)) > 1:
             st["tasks"] = unit_tasks(task)  # one policy trained on all of them (--multitask), evaluated on each
         print(f"=== {method} / {task} / {n} demos / seed {seed}", flush=True)

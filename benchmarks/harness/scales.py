@@ -84,9 +84,8 @@ SUITES: dict[str, dict] = {
         record_args=["--suite", "panda"],
         # --protocol spatial: furthest-point sampling over (x, y, yaw mod 90 degrees) from the centre of the range (the
         # recorder's fps-centre); the grid: cell centres over x, y and yaw; the target (push-block, pick-place)
-        # at the centre of its range where that is valid (10 cm or more from the object; push-block: 22 cm or
-        # less), else drawn from a seeded generator until valid (demos: the recording seed; grid cell i:
-        # eval_seed + i)
+        # drawn uniformly from its range by a seeded generator until valid (10 cm or more from the object;
+        # push-block: 22 cm or less), for demos (the recording seed) and grid cells (cell i: eval_seed + i) alike
         fps_mode="fps-centre", grid_layout="cells", grid_others="seeded", grid_dims=(0, 1, 2),
         scales={
             # episode_length: the recorder's limit for the expert (as MetaWorld's 300): 2.2 x the 54 steps the

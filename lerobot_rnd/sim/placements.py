@@ -71,20 +71,24 @@ def fps_centre_dims(env) -> tuple[int, ...]:
 
 def complete_placement(env, vec: np.ndarray, dims: Sequence[int], rng: np.random.Generator,
                        tries: int = 1000) -> np.ndarray | None:  # fmt: skip
-    """``vec`` with its coordinates outside ``dims`` set to the centre of their range when that is valid, else
-    drawn uniformly from their range with ``rng`` until the placement is valid; None if no valid one is found
-    (``vec``'s coordinates in ``dims`` are kept)."""
+    """``vec`` with its coordinates outside ``dims`` that vary (push-block / pick-place: the target x, y) drawn
+    uniformly from their range with ``rng`` until the placement is valid, as the env's random placements draw them;
+    the coordinates outside ``dims`` whose range is one value at that value. None if no valid one is found in
+    ``tries`` draws (``vec``'s coordinates in ``dims`` are kept).
+
+    The target is drawn even where the centre of its range would be valid: a rule "centre if valid, else random"
+    gives demos at the edges of the object range and test placements near its centre different targets (the
+    furthest-point demos of push-block mostly pushed to the centre, most test cells to random targets)."""
     sp = env.placement_space
     low, high = np.asarray(sp.low, np.float64), np.asarray(sp.high, np.float64)
     others = [i for i in range(len(low)) if i not in set(dims)]
+    drawn = [i for i in others if high[i] > low[i]]
     p = np.asarray(vec, dtype=np.float64).copy()
     p[others] = (low[others] + high[others]) / 2
-    if env.is_valid_placement(p):
-        return p
-    if not others:
-        return None
+    if not drawn:
+        return p if env.is_valid_placement(p) else None
     for _ in range(tries):
-        p[others] = rng.uniform(low[others], high[others])
+        p[drawn] = rng.uniform(low[drawn], high[drawn])
         if env.is_valid_placement(p):
             return p
     return None
@@ -96,8 +100,8 @@ class PlacementSequence:
     ``fps-centre``: furthest point sampling over the coordinates :func:`fps_centre_dims` (Panda: object x, y,
     yaw; yaw compared modulo the object's symmetry, :func:`placement_periods`), starting from the centre of their
     range: the pool is that centre plus ``fps_pool - 1`` uniform draws of
-    those coordinates, each completed by :func:`complete_placement` (the other coordinates, e.g. a target, at the
-    centre of their range if valid, else drawn with the sequence's seeded generator until valid); the first
+    those coordinates, each completed by :func:`complete_placement` (the other coordinates, e.g. a target, drawn
+    uniformly with the sequence's seeded generator until valid); the first
     placement is the centre, each next one the pool point furthest from those before, in those coordinates."""
 
     def __init__(self, env, mode: str = "random", seed: int = 0, fps_pool: int = 1000):
