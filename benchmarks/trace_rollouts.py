@@ -51,17 +51,19 @@ def recording_suite(data_root: Path) -> str:
 
 def demo_goals(data_root: Path) -> np.ndarray:
     """(N, 3) goal positions (world frame, m) of a recording's demos in episode order: MetaWorld, the placement's
-    last three numbers; SO-101 reach-target, the target (x, y, z); SO-101 pick-cube and the Panda tasks, the object's
-    centre (a 4 cm cube's height) from its (x, y, yaw, ...) placement."""
+    last three numbers; SO-101 reach-target, the target (x, y, z); SO-101 pick-cube, the cube's centre; the Panda
+    tasks, where the scripted expert's gripper first meets the object (``panda_experts.first_contact_point``: the
+    cube's centre, push-block's push start behind the block, the button's top)."""
     placements = np.array(training_placements(data_root), dtype=np.float64)
     if recording_suite(data_root) == "so101" and recording_settings(data_root)["task"] == "pick-cube":
         from lerobot_rnd.sim.so101_scene import CUBE_HALF
 
         return np.concatenate([placements[:, :2], np.full((len(placements), 1), CUBE_HALF)], axis=1)
-    if recording_suite(data_root) == "panda":  # the object's (x, y, yaw, ...): its centre on the table
-        from lerobot_rnd.sim.panda_scene import CUBE_HALF
+    if recording_suite(data_root) == "panda":
+        from lerobot_rnd.sim.panda_experts import first_contact_point
 
-        return np.concatenate([placements[:, :2], np.full((len(placements), 1), CUBE_HALF)], axis=1)
+        task = recording_settings(data_root)["task"]
+        return np.stack([first_contact_point(task, p) for p in placements])
     return placements[:, -3:]
 
 

@@ -196,3 +196,40 @@ def test_panda_demo_goals_and_hands_are_where_mujoco_puts_them(tmp_path):
     env.close()
     np.testing.assert_allclose(tr.demo_goals(tmp_path), np.array(goals), atol=2e-3)
     np.testing.assert_allclose(tr.demo_hand_positions(tmp_path, np.array(states)), np.array(hands), atol=1e-5)
+
+
+@pytest.mark.parametrize("task,placement", [("push-block", [0.40, 0.08, 0.3, 0.52, -0.05]),
+                                            ("press-button", [0.50, -0.10, 0.4])])  # fmt: skip
+def test_panda_push_and_press_goals_are_where_the_expert_meets_the_object(tmp_path, task, placement):
+    """push-block's goal is where the expert's gripper stands, lowered, when it starts to push (not the block's
+    centre: the expert approaches from behind the block, on the block-target line); press-button's is the top of the
+    button MuJoCo places."""
+    pytest.importorskip("gym_hil", reason="the Panda scenes need gym-hil's assets")
+    from tests.helpers import gl_available
+
+    if not gl_available():
+        pytest.skip("no headless OpenGL (MUJOCO_GL=egl/osmesa)")
+    from lerobot_rnd.sim.panda_env import RnDPandaEnv
+    from lerobot_rnd.sim.panda_experts import PandaExpert
+
+    (tmp_path / "meta").mkdir()
+    (tmp_path / "meta" / "rnd_recording.json").write_text(json.dumps({
+        "settings": {"suite": "panda", "task": task},
+        "attempts": [{"placement": placement, "success": True, "episode_index": 0}]}))  # fmt: skip
+    env = RnDPandaEnv(task, observation_height=32, observation_width=32)
+    try:
+        env.reset(options={"placement": placement})
+        if task == "press-button":
+            truth = env.object_pos()
+        else:
+            expert, truth = PandaExpert(task), None
+            for _ in range(80):
+                if expert.phase == 2:  # lowered behind the block: the push begins
+                    truth = env.ee_pose()[:3, 3]
+                    break
+                env.step(expert.act(env))
+            assert truth is not None, "the expert never started to push"
+            assert np.linalg.norm(truth[:2] - np.asarray(placement[:2])) > 0.05  # behind the block, not on it
+    finally:
+        env.close()
+    np.testing.assert_allclose(tr.demo_goals(tmp_path)[0], truth, atol=0.012)

@@ -24,7 +24,15 @@ import math
 
 import numpy as np
 
-from lerobot_rnd.sim.panda_scene import BLOCK_HALF, BUTTON_TRAVEL, CUBE_HALF, HOME_QUAT, PANDA_TASKS
+from lerobot_rnd.sim.panda_scene import (
+    BLOCK_HALF,
+    BUTTON_HALF_HEIGHT,
+    BUTTON_HOUSING_HALF,
+    BUTTON_TRAVEL,
+    CUBE_HALF,
+    HOME_QUAT,
+    PANDA_TASKS,
+)
 from lerobot_rnd.sim.quaternions import matrix_to_quat, quat_mul, quat_to_rotvec, yaw_quat
 
 #: finger-pad tips below the EE (pinch) origin when the gripper is closed on nothing (m)
@@ -37,6 +45,33 @@ HOVER = 0.10
 #: from the first frame, held all of it; at 0.4 it takes 10-19 steps (lift-cube), which a policy re-plans from new
 #: images (benchmarks/results/panda_env_speed.json has the expert's steps per episode)
 APPROACH_SPEED = 0.4
+#: push-block: the block's half width + half the closed pads' thickness (EE from block centre at contact, m), and how
+#: far behind that contact point the push starts
+PUSH_CONTACT = max(BLOCK_HALF[:2]) + 0.008
+PUSH_BACKOFF = 0.03
+#: push-block: EE height while pushing (m)
+PUSH_Z = 0.016 + CLOSED_TIP_OFFSET
+
+
+def push_start_xy(block_xy: np.ndarray, target_xy: np.ndarray) -> np.ndarray:
+    """(2,) world x, y (m) behind the block on the block-target line, where the push-block expert lowers its
+    gripper before pushing."""
+    d = np.asarray(target_xy, np.float64) - np.asarray(block_xy, np.float64)
+    return np.asarray(block_xy, np.float64) - d / max(float(np.linalg.norm(d)), 1e-9) * (PUSH_CONTACT + PUSH_BACKOFF)
+
+
+def first_contact_point(task: str, placement) -> np.ndarray:
+    """(3,) world position (m) of the EE where the scripted expert of ``task`` first meets its object, from an
+    episode's placement [x, y, yaw, (target x, y)]: lift-cube / pick-place the cube's centre (the grasp);
+    push-block the push start behind the block at pushing height; press-button the button's top."""
+    p = np.asarray(placement, np.float64)
+    if task in ("lift-cube", "pick-place"):
+        return np.array([p[0], p[1], CUBE_HALF])
+    if task == "push-block":
+        return np.array([*push_start_xy(p[:2], p[3:5]), PUSH_Z])
+    if task == "press-button":
+        return np.array([p[0], p[1], 2 * (BUTTON_HOUSING_HALF[2] + BUTTON_HALF_HEIGHT)])
+    raise ValueError(f"unknown Panda task {task!r}; known: {', '.join(PANDA_TASKS)}")
 
 
 def _yaw_of(q: np.ndarray) -> float:
@@ -187,9 +222,8 @@ class PandaExpert:
         yaw = nearest_equivalent_yaw(math.atan2(u[1], u[0]) + math.pi / 2, math.pi, target_yaw(env))
         q = ee_quat_for_yaw(yaw)
         ee = env.ee_pose()[:3, 3]
-        contact = max(BLOCK_HALF[:2]) + 0.008  # block half width + half the closed pads' thickness
-        push_z = 0.016 + CLOSED_TIP_OFFSET
-        behind = b[:2] - u * (contact + 0.03)
+        contact, push_z = PUSH_CONTACT, PUSH_Z
+        behind = push_start_xy(b[:2], t[:2])
         if dist < 0.012 and self.phase == 2:
             self._next(3)
         if self.phase == 0:  # behind the block, above it, closed
