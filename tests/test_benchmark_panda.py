@@ -247,6 +247,32 @@ def test_3d_heat_map_draws_one_xy_map_per_yaw(tmp_path):
     assert (tmp_path / "via_dispatch.png").exists()
 
 
+def test_3d_heat_map_of_push_block_draws_each_cells_direction_to_its_target(tmp_path):
+    """The target differs per cell (drawn at random): the map shows where each cell pushes, so two result sets that
+    differ only in their targets give different pictures, and a lift-cube set with the same numbers draws none."""
+    import matplotlib.image as mpimg
+
+    res = _fake_3d_results()
+    reports.plot_heatmap_3d(res, "push-block", tmp_path / "a.png")
+    other = _fake_3d_results()
+    other["eval_sets"]["push-block"]["placements"] = [[*p[:3], p[0], p[1] - 0.15]
+                                                      for p in other["eval_sets"]["push-block"]["placements"]]  # fmt: skip
+    reports.plot_heatmap_3d(other, "push-block", tmp_path / "b.png")
+    a, b = mpimg.imread(tmp_path / "a.png"), mpimg.imread(tmp_path / "b.png")
+    assert a.shape == b.shape and np.abs(a - b).max() > 0.5  # arrows pointing elsewhere
+    lift = _fake_3d_results()
+    lift["eval_sets"]["lift-cube"] = lift["eval_sets"].pop("push-block")
+    lift["datasets"]["lift-cube"] = lift["datasets"].pop("push-block")
+    for r in lift["runs"]:
+        r["task"] = "lift-cube"
+    lift["benchmark"]["tasks"] = ["lift-cube"]
+    reports.plot_heatmap_3d(lift, "lift-cube", tmp_path / "c.png")
+    lift["eval_sets"]["lift-cube"]["placements"] = [p[:3] for p in lift["eval_sets"]["lift-cube"]["placements"]]
+    reports.plot_heatmap_3d(lift, "lift-cube", tmp_path / "d.png")  # 3-number placements: nothing to point at
+    c, d = mpimg.imread(tmp_path / "c.png"), mpimg.imread(tmp_path / "d.png")
+    assert np.array_equal(c, d)
+
+
 def test_a_reused_dataset_recorded_with_another_placement_rule_is_refused(tmp_path):
     """The benchmark reuses a complete dataset by name; one whose logged placements are not those the recorder
     draws today (push-block's former rule: the target at the centre of its range where valid) must not be

@@ -412,10 +412,20 @@ def _deg(rad: float) -> str:
     return f"{math.degrees(rad):+.0f}°"
 
 
+def _direction_arrows(ax, x, y, d, length: float, color: str) -> None:
+    """Arrows of one ``length`` (data units) from the points (x, y) along the (N, 2) directions ``d``."""
+    import numpy as np
+
+    u = np.asarray(d, dtype=float)
+    u = u / np.maximum(np.linalg.norm(u, axis=1, keepdims=True), 1e-9) * length
+    ax.quiver(x, y, u[:, 0], u[:, 1], angles="xy", scale_units="xy", scale=1, color=color, width=0.008,
+              alpha=0.8, zorder=3)  # fmt: skip
+
+
 def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
     """Success over a 3-D evaluation grid (x, y and yaw: Panda's object pose): one x-y heat map per yaw value
     (rows: method x yaw, columns: demo counts), the training placements' (x, y) marked with their yaw written next
-    to them. Returns the panels' titles (each names its yaw)."""
+    to them; for push-block and pick-place an arrow per cell and demo towards its target. Returns the panels' titles (each names its yaw)."""
     import numpy as np
 
     plt = _mpl()
@@ -425,6 +435,8 @@ def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
     gx, gy, gz = es["grid_x"], es["grid_y"], es["grid_z"]
     G, Gy, Z = len(gx), len(gy), len(gz)
     ms, ns = b["methods"], sorted(b["demos"])
+    # push-block / pick-place placements end with the target's (x, y): draw where each cell and demo pushes to
+    targets = task in ("push-block", "pick-place") and bool(es["placements"]) and len(es["placements"][0]) >= 5
     hx = (gx[-1] - gx[0]) / max(1, G - 1) / 2
     hy = (gy[-1] - gy[0]) / max(1, Gy - 1) / 2
     ext = [gx[0] - hx, gx[-1] + hx, gy[0] - hy, gy[-1] + hy]
@@ -448,6 +460,14 @@ def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
                             grid[iy, ix] = v
                             k, cnt = k + v, cnt + 1
                 im = ax.imshow(grid, origin="lower", extent=ext, vmin=0, vmax=1, cmap="RdYlGn", aspect="auto")
+                if targets:  # each cell's direction from the object to its target (push-block, pick-place)
+                    here = [k for k, c in enumerate(es["cells"]) if c[2] == iz]
+                    if here:
+                        P = np.asarray([es["placements"][k] for k in here], dtype=float)
+                        _direction_arrows(ax, P[:, dims[0]], P[:, dims[1]], P[:, 3:5] - P[:, :2], 0.7 * min(hx, hy), "k")
+                    if len(tr):
+                        _direction_arrows(ax, tr[:, dims[0]], tr[:, dims[1]], tr[:, 3:5] - tr[:, :2],
+                                          0.45 * min(hx, hy), "navy")  # fmt: skip
                 if len(tr):
                     ax.scatter(tr[:, dims[0]], tr[:, dims[1]], marker="x", c="k", s=18, label="demos")
                     for p in tr:  # the yaw next to the mark, on the side towards the middle of the map
@@ -463,11 +483,13 @@ def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
                 ax.tick_params(labelsize=6)
                 ax.set_xlabel(f"placement[{dims[0]}] x (m)", fontsize=7)
                 ax.set_ylabel(f"placement[{dims[1]}] y (m)", fontsize=7)
-    fig.subplots_adjust(top=1.0 - 1.0 / fig.get_figheight(), hspace=0.55, wspace=0.35)
+    header_in = 1.0 + (0.25 if targets else 0.0)  # the suptitle's lines, inches
+    fig.subplots_adjust(top=1.0 - header_in / fig.get_figheight(), hspace=0.55, wspace=0.35)
     fig.colorbar(im, ax=axes, shrink=0.6, label="success")
     fig.suptitle(f"{task}: success per evaluation placement,\none x-y map per yaw (placement[{dims[2]}]: "
                  f"{', '.join(_deg(z) for z in gz)})\nx: training placements, their yaw written; "
-                 f"{es.get('n_invalid', 0)} invalid cells skipped", fontsize=8)  # fmt: skip
+                 + ("\narrows: direction to the target (black: test cell, blue: demo); " if targets else "")
+                 + f"{es.get('n_invalid', 0)} invalid cells skipped", fontsize=8)  # fmt: skip
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return titles
