@@ -141,7 +141,7 @@ STATUS: dict[str, tuple[str, str]] = {
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps, "
                       "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
                       "of full speed, R&D-AI with 16-px patches: with 8 demos R&D-AI 21/27, ACT 4/27; with 2 demos "
-                      "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27 (ACT running); push-block's runs start over with "
+                      "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27, ACT 0/27; push-block's runs start over with "
                       "targets drawn at random for demos and test cells alike (archive/panda_spatial_push_centre_target); "
                       "on their own 8 "
                       "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
