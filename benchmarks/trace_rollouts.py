@@ -83,10 +83,14 @@ def goal_response(starts: np.ndarray, later: np.ndarray, goals: np.ndarray) -> d
     """How strongly the gripper follows the goal: per axis, the least-squares slope (and correlation) of the
     displacement `later - starts` against the goal's offset `goals - starts`, over episodes; all (N, 3).
     1 = moved all the way to the goal on that axis, 0 = moved the same whatever the goal (a policy that
-    ignores the goal and replays an average demonstration)."""
+    ignores the goal and replays an average demonstration). An axis on which the goal's offset does not vary (e.g.
+    push-block's height: every episode starts and pushes at the same heights) has no slope: None for both."""
     out = {}
     for k, axis in enumerate("xyz"):
         offset, moved = goals[:, k] - starts[:, k], later[:, k] - starts[:, k]
+        if np.std(offset) < 1e-4:  # under 0.1 mm of spread: nothing to regress on
+            out[axis] = {"slope": None, "correlation": None}
+            continue
         slope = float(np.polyfit(offset, moved, 1)[0])
         out[axis] = {"slope": round(slope, 3), "correlation": round(float(np.corrcoef(offset, moved)[0, 1]), 3)}
     return out
@@ -366,8 +370,9 @@ def main(argv=None) -> int:
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(result, indent=1))
     for name in ("goal_response", "demo_goal_response"):
-        print(name, f"at step {step}:", "  ".join(f"{k} {v['slope']:.2f} (r {v['correlation']:.2f})"
-                                                 for k, v in result[name].items()))  # fmt: skip
+        print(name, f"at step {step}:", "  ".join(
+            f"{k} {v['slope']:.2f} (r {v['correlation']:.2f})" if v["slope"] is not None else f"{k} - (no spread)"
+            for k, v in result[name].items()))  # fmt: skip
     print(f"{result['successes']}/{len(episodes)}; wrote {a.out}")
     return 0
 

@@ -168,6 +168,18 @@ STATUS: dict[str, tuple[str, str]] = {
                                                         "against 1/8 with 32-px patches and 7/8 for ACT.")),
     "chunk_goal_response_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT checkpoint on its own demos: slopes "
                                                    "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
+    "trace_panda_push_random_target_rnd_ai_n8.json": (CURRENT, ("The panda_spatial R&D-AI push-block checkpoint (8 "
+                                                      "demos, a random target per episode) on validation seeds "
+                                                      "100-119: 0/20; at step 30 its gripper's displacement does not "
+                                                      "follow the push start behind the block (slopes x 0.11, y "
+                                                      "0.00; the demos 0.82, 0.90).")),
+    "chunk_goal_response_panda_push_random_target_rnd_ai_n8.json": (CURRENT, ("The same checkpoint on its own demos, "
+                                                                   "open loop: the first chunk ignores the block "
+                                                                   "(slopes x -0.04, y -0.00 at frame 0; lift-cube's "
+                                                                   "run 0.87, 0.53), and follows the demos halfway "
+                                                                   "once the arm has moved (0.47, 0.50 at frame 8). "
+                                                                   "On its own 8 demo placements it succeeds at none "
+                                                                   "(panda_spatial/train_placements_push-block_n8.json).")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
                                           "the centre and the four (x, y) corners of lift-cube's placement range "
                                           "(benchmarks/camera_views.py): front 10-16 px wide at 128 px; the "

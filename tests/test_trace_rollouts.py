@@ -64,6 +64,10 @@ def test_goal_response_is_the_slope_of_the_displacement_against_the_goal_offset(
     same_move = starts + np.array([0.0, 0.3, 0.0])  # ignores the goal
     r = tr.goal_response(starts, same_move, goals)
     assert r["x"]["slope"] == pytest.approx(0.0, abs=1e-9) and r["y"]["slope"] == pytest.approx(0.0, abs=1e-9)
+    flat = goals.copy()
+    flat[:, 2] = starts[:, 2] + 0.05  # the same height offset in every episode: no slope on z
+    r = tr.goal_response(starts, halfway, flat)
+    assert r["z"] == {"slope": None, "correlation": None} and r["x"]["slope"] == pytest.approx(0.5)
 
 
 def test_static_camera_ray_error_splits_a_miss_into_depth_and_image_position():
