@@ -119,6 +119,14 @@ STATUS: dict[str, tuple[str, str]] = {
                                            "demos, closed loop on validation seeds 100-119: 1/20, still blind to "
                                            "the goal (slopes x 0.03, y 0.07, z 0.12) and ending on the table "
                                            "(median final height 8 mm): twice the demos did not change it."),
+    "trace_so101_reach_rnd_ai_p16.json": (CURRENT, "A validation run: R&D-AI reach-target (10 demos) trained with "
+                                           "16-px patches (run_benchmark.py --suite so101 --scale cpu --tasks "
+                                           "reach-target --demos 10 --methods rnd_ai --steps 3000 --train-only "
+                                           "--train-arg rnd_ai:--policy.patch_size=16), closed loop on validation "
+                                           "seeds 100-119: 3/20 (32 px: 1/20), still blind to the goal (slopes x "
+                                           "0.14, y -0.05, z -0.13; median miss 18 cm), no longer ending on the "
+                                           "table (median final height 9 cm): the SO-101 config keeps 32-px "
+                                           "patches, the test seeds were not run."),
     "trace_so101_reach_rnd_ai_ikw0.1.json": (CURRENT, "The so101_random R&D-AI reach-target checkpoint (10 demos) "
                                               "with IK orientation weight 0.1 instead of 1 (set at inference only), "
                                               "closed loop on validation seeds 100-119: 0/20, slopes about 0, ending "
