@@ -200,7 +200,7 @@ class Benchmark:
         its runs would train on demos of another placement rule, e.g. push-block's former centre target): raises
         naming the dataset and the fix."""
         from lerobot_rnd.sim.placements import PlacementSequence
-        from lerobot_rnd.sim.record import RecordSettings, _check_same_placements, attempt_task
+        from lerobot_rnd.sim.record import RecordSettings, attempt_task, check_same_placements
 
         log = _read_json(root / "meta" / "rnd_recording.json", {}) or {}
         st = log.get("settings") or {}
@@ -213,9 +213,12 @@ class Benchmark:
         attempts = [x for x in log.get("attempts", []) if attempt_task(x, st) == task]
         env = self.make_env(task)
         try:
-            _check_same_placements(attempts, PlacementSequence(env, s.placements, s.seed, s.fps_pool), root, s)
-        except Exception as e:
-            raise RuntimeError(f"{e} (the benchmark records it again once it is removed)") from e
+            check_same_placements(attempts, PlacementSequence(env, s.placements, s.seed, s.fps_pool), root, s,
+                                  context="benchmark, reusing a dataset",
+                                  fix="remove it (archive the runs trained on it) and rerun: the benchmark records it "
+                                      "again")  # fmt: skip
+        except ValueError as e:  # SettingError
+            raise RuntimeError(str(e)) from e
         finally:
             env.close()
 

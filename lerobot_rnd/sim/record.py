@@ -557,17 +557,18 @@ def saved_per_task(log: dict, tasks: Sequence[str]) -> dict[str, int]:
     return saved
 
 
-def _check_same_placements(attempts: list[dict], seq, root: Path, s) -> None:
-    """A resumed recording must go on with the placement sequence it began with: every logged attempt's placement
-    is the one ``seq`` gives at its index (else the demos would mix two sequences, e.g. one recorded before
-    furthest-point sampling learned the object's yaw symmetry)."""
+def check_same_placements(attempts: list[dict], seq, root: Path, s, context: str = "--resume",
+                          fix: str = "choose another --root, or remove this one and record it again") -> None:  # fmt: skip
+    """A resumed (or, ``context``, reused) recording must go on with the placement sequence it began with: every
+    logged attempt's placement is the one ``seq`` gives at its index (else the demos would mix two sequences, e.g.
+    one recorded before furthest-point sampling learned the object's yaw symmetry). Raises a :class:`SettingError`
+    ending with ``fix``."""
     for a in attempts:
         if not np.allclose(seq[a["placement_index"]], a["placement"], atol=1e-9):
             raise SettingError(
-                f"--resume: {root}: attempt {a['placement_index']} was recorded at placement {a['placement']}, but --placements "
-                f"{s.placements} --seed {s.seed} now gives {[float(v) for v in seq[a['placement_index']]]} there "
-                "(the placement sequence changed since this dataset was begun): choose another --root, or remove "
-                "this one and record it again"
+                f"{context}: {root}: attempt {a['placement_index']} was recorded at placement {a['placement']}, but "
+                f"--placements {s.placements} --seed {s.seed} now gives {[float(v) for v in seq[a['placement_index']]]} "
+                f"there (the placement sequence changed since this dataset was recorded): {fix}"
             )
 
 
@@ -617,7 +618,7 @@ def _record(
     if root.exists():
         try:  # before the dataset is opened: a refused resume leaves the folder as it was
             first = [a for a in log["attempts"] if attempt_task(a, log["settings"]) == tasks[0]]
-            _check_same_placements(first, PlacementSequence(env, s.placements, s.seed, s.fps_pool), root, s)
+            check_same_placements(first, PlacementSequence(env, s.placements, s.seed, s.fps_pool), root, s)
         except SettingError:
             env.close()
             raise
@@ -653,7 +654,7 @@ def _record(
             next_index = 1 + max((a["placement_index"] for a in mine), default=-1)
             seq = PlacementSequence(env, s.placements, s.seed, s.fps_pool)
             if task != tasks[0]:
-                _check_same_placements(mine, seq, root, s)
+                check_same_placements(mine, seq, root, s)
             task_attempts = task_failures = 0
             while saved[task] < s.episodes:
                 if task_attempts >= max_attempts:
