@@ -157,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     os.environ.setdefault("MUJOCO_GL", "egl")
     d = suite_scale_defaults("panda", "cpu")
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--tasks", default="lift-cube,push-block,press-button,pick-place")
+    p.add_argument("--tasks", default="lift-cube,push-block,press-button,pick-place,slide-block")
     p.add_argument("--expert-episodes", type=int, default=2)
     p.add_argument("--random-episodes", type=int, default=1)
     p.add_argument("--episode-length", type=int, default=d["episode_length"],

@@ -645,7 +645,7 @@ def so101_section() -> list[str]:
 
 
 PANDA_SPATIAL_FOLDER = "panda_spatial"
-PANDA_SPATIAL_TASKS = ("lift-cube", "push-block")
+PANDA_SPATIAL_TASKS = ("lift-cube", "slide-block", "push-block")
 PANDA_SPATIAL_DEMOS = (2, 4, 8, 16)
 
 
@@ -664,7 +664,7 @@ def panda_spatial_section() -> list[str]:
         "### Panda, spatial protocol (6-DoF gripper, furthest-point demos)",
         "",
         "Demos by furthest-point sampling over the object's (x, y, yaw) from the centre of its range (yaw modulo the "
-        "object's 90-degree symmetry); the front camera framed on the placement range (the cube 10-16 px wide at "
+        "object's 90-degree symmetry, except slide-block's); the front camera framed on the placement range (the cube 10-16 px wide at "
         "128 px) and a 60-degree wrist camera; the scripted expert approaches the object at 0.4 of full speed; "
         "evaluation on "
         "a 3 x 3 x 3 grid of cell centres over x, y and yaw (27 episodes per cell of the table, Wilson 95% "
@@ -673,7 +673,9 @@ def panda_spatial_section() -> list[str]:
         f"[benchmarks/results/{PANDA_SPATIAL_FOLDER}](../benchmarks/results/{PANDA_SPATIAL_FOLDER}/"
         f"{'results.md' if (folder / 'results.md').exists() else 'runs/'})"
         + (f"; heat maps with the training placements marked: {', '.join(maps)}" if maps else "") + ". "
-        "Push-block's and pick-place's target is drawn at random (seeded) for demos and test cells alike. Five "
+        "Push-block's and pick-place's target is drawn at random (seeded) for demos and test cells alike; "
+        "slide-block's lies 10 cm along the block's own +y axis (RLBench's slide-block-to-target, the paper's spatial "
+        "task), so the push direction and the gripper turn with the block's yaw. Five "
         "earlier rounds are archived: `panda_spatial_raw_yaw` (demos sampled without the yaw symmetry), "
         "`panda_spatial_camera_v1` (cameras that showed the cube 8-11 px wide), `panda_spatial_fast_expert` (an "
         "expert that made its whole approach within one action chunk), `panda_spatial_patch32` (R&D-AI with "

@@ -197,6 +197,10 @@ STATUS: dict[str, tuple[str, str]] = {
                                            "seeded, as in the benchmark): front 13-18 px wide at 128 px; "
                                            "the gripper hides most of it from the wrist camera at the far "
                                            "corners.")),
+    "panda_camera_views_slide-block.json": (CURRENT, ("The same for slide-block's block (its target 10 cm along the "
+                                            "block's +y axis, in view at every placement): front 13-17 px wide at "
+                                            "128 px; the wrist camera sees most of it except at the two far "
+                                            "corners, where the gripper hides it.")),
     "so101_camera_views_reach-target.json": (CURRENT, ("How large the ball appears in the simulated SO-101's cameras "
                                              "at the start pose, at the centre and the four (x, y) corners of "
                                              "reach-target's range (ball at mid height): front 8-10 px wide at 128 "

@@ -3,6 +3,7 @@ centre of the placement range, the 3-D evaluation grid (x, y, yaw) and its heat 
 
 from __future__ import annotations
 
+import json
 import math
 import subprocess
 import sys
@@ -82,7 +83,7 @@ def test_panda_suite_refuses_metaworld_tasks_and_the_gpu_scale():
     with pytest.raises(SystemExit):
         cli.parse_args(["--suite", "panda", "--scale", "gpu"])
     a = cli.parse_args(["--suite", "panda", "--scale", "cpu"])
-    assert a.tasks == ["lift-cube", "push-block", "press-button", "pick-place"] and a.episode_length == 120
+    assert a.tasks == ["lift-cube", "push-block", "press-button", "pick-place", "slide-block"] and a.episode_length == 120
     assert a.out.endswith("benchmarks/results/panda_cpu") and a.grid == 3 and a.grid_yaws == 3
     assert cli.parse_args(["--scale", "cpu"]).out.endswith("benchmarks/results/cpu")  # MetaWorld unchanged
 
@@ -271,6 +272,11 @@ def test_3d_heat_map_of_push_block_draws_each_cells_direction_to_its_target(tmp_
     reports.plot_heatmap_3d(lift, "lift-cube", tmp_path / "d.png")  # 3-number placements: nothing to point at
     c, d = mpimg.imread(tmp_path / "c.png"), mpimg.imread(tmp_path / "d.png")
     assert np.array_equal(c, d)
+    # slide-block's 3-number placements imply their target (10 cm along the block's +y): arrows are drawn
+    slide = json.loads(json.dumps(lift).replace("lift-cube", "slide-block"))
+    slide["datasets"]["slide-block"]["2"]["placements"] = [p[:3] for p in slide["datasets"]["slide-block"]["2"]["placements"]]
+    reports.plot_heatmap_3d(slide, "slide-block", tmp_path / "e.png")
+    assert np.abs(mpimg.imread(tmp_path / "e.png") - d).max() > 0.5
 
 
 def test_a_reused_dataset_recorded_with_another_placement_rule_is_refused(tmp_path):
@@ -278,7 +284,6 @@ def test_a_reused_dataset_recorded_with_another_placement_rule_is_refused(tmp_pa
     draws today (push-block's former rule: the target at the centre of its range where valid) must not be
     trained on silently."""
     _needs_panda()
-    import json
 
     from lerobot_rnd.sim.panda_env import RnDPandaEnv
 
@@ -310,7 +315,6 @@ def test_a_reused_dataset_recorded_with_another_placement_rule_is_refused(tmp_pa
 def test_a_run_trained_on_other_placements_than_its_dataset_now_holds_is_not_resumed_or_collected(tmp_path):
     """A run remembers a fingerprint of its demos' and evaluation placements; when the dataset is recorded again
     (or the grid changes) its finished or part-done state must not be carried into the new results."""
-    import json
 
     a = cli.parse_args(["--suite", "panda", "--scale", "cpu", "--protocol", "spatial", "--tasks", "push-block",
                         "--demos", "8", "--methods", "act", "--resume", "--out", str(tmp_path / "o"),

@@ -44,7 +44,7 @@ def test_projected_width_matches_rendered_width(tmp_path, suite, task, min_check
     assert checked >= min_checked
 
 
-@pytest.mark.parametrize("task", ["lift-cube", "push-block", "press-button", "pick-place"])
+@pytest.mark.parametrize("task", ["lift-cube", "push-block", "press-button", "pick-place", "slide-block"])
 def test_the_measured_placements_are_valid_and_put_the_object_at_the_centre_and_corners(task):
     if importlib.util.find_spec("gym_hil") is None:
         pytest.skip("pip install --no-deps gym_hil: the panda suite's assets")

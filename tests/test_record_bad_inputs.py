@@ -49,7 +49,7 @@ FLAG_ERRORS = {
     ),
     "unknown-panda-task": (
         ["--suite", "panda", "--task", "lift-cub"], False, ValueError,
-        ["--task lift-cub", "did you mean lift-cube", "lift-cube, push-block, press-button, pick-place"],
+        ["--task lift-cub", "did you mean lift-cube", "lift-cube, push-block, press-button, pick-place, slide-block"],
     ),
     "panda-task-without-suite-panda": (
         ["--task", "lift-cube"], False, ValueError, ["--task lift-cube is a Panda task", "add --suite panda"]

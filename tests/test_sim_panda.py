@@ -120,6 +120,7 @@ EXPERT_PLACEMENTS = {
     "push-block": [[0.40, -0.08, 0.5, 0.55, 0.05], [0.50, 0.10, -0.3, 0.35, -0.02]],
     "press-button": [[0.35, -0.12, 0.3], [0.53, 0.13, -0.7]],
     "pick-place": [[0.38, 0.10, 0.7, 0.52, -0.12]],
+    "slide-block": [[0.38, -0.14, -0.78], [0.50, 0.08, 0.78]],  # opposite corners, yaw near -+45 degrees
 }
 
 
@@ -143,6 +144,41 @@ def test_expert_succeeds(task):
             d = (grasp_yaw - placement[2] + math.pi / 4) % (math.pi / 2) - math.pi / 4
             assert abs(d) < math.radians(4), (math.degrees(grasp_yaw), placement)
             assert abs(grasp_yaw) > math.radians(30)
+    env.close()
+
+
+def test_slide_block_target_turns_with_the_block_and_so_does_the_push():
+    """slide-block (RLBench's slide-block-to-target): the target disc lies 10 cm along the block's own +y axis, read
+    from MuJoCo's pose of the block body, whatever the yaw; yaws 90 degrees apart are different scenes (no period);
+    the expert pushes along that axis with the gripper turned by the block's yaw (modulo 180 degrees)."""
+    env = small_env("slide-block", episode_length=80)
+    assert env.placement_periods()[2] == 0.0
+    assert small_env("push-block").placement_periods()[2] == pytest.approx(math.pi / 2)
+    low, high = env.placement_space.low, env.placement_space.high
+    rng = np.random.default_rng(0)
+    for placement in [low, high, [low[0], high[1], high[2]], *rng.uniform(low, high, (3, 3))]:
+        env.reset(options={"placement": placement})
+        y_axis = env.data.body("block").xmat.reshape(3, 3)[:, 1]
+        np.testing.assert_allclose(env.target_pos()[:2] - env.object_pos()[:2], 0.10 * y_axis[:2], atol=2e-3)
+    q_a, q_b = [0.44, -0.03, -0.7], [0.44, -0.03, -0.7 + math.pi / 2]  # the block looks the same, the target does not
+    env.reset(options={"placement": q_a})
+    t_a = env.target_pos()
+    with pytest.raises(ValueError, match="invalid placement"):
+        env.reset(options={"placement": q_b})  # outside the +-45-degree range, not folded into it
+    assert t_a[0] > 0.44 + 0.05  # yaw -0.7 rad: the block's +y points to +x as much as to +y
+    expert = PandaExpert("slide-block")
+    for yaw in (-0.7, 0.7):
+        env.reset(options={"placement": [0.44, -0.03, yaw]})
+        pushing = []
+        for _ in range(80):
+            _, _, term, _, info = env.step(expert.act(env))
+            if expert.phase == 2:
+                pushing.append(yaw_of_ee(env.ee_pose()))
+            if term:
+                break
+        assert info["is_success"] and pushing
+        d = (np.median(pushing) - yaw + math.pi / 2) % math.pi - math.pi / 2
+        assert abs(d) < math.radians(5), (math.degrees(np.median(pushing)), math.degrees(yaw))
     env.close()
 
 

@@ -203,11 +203,12 @@ def test_panda_demo_goals_and_hands_are_where_mujoco_puts_them(tmp_path):
 
 
 @pytest.mark.parametrize("task,placement", [("push-block", [0.40, 0.08, 0.3, 0.52, -0.05]),
+                                            ("slide-block", [0.48, -0.10, -0.6]),
                                             ("press-button", [0.50, -0.10, 0.4])])  # fmt: skip
 def test_panda_push_and_press_goals_are_where_the_expert_meets_the_object(tmp_path, task, placement):
-    """push-block's goal is where the expert's gripper stands, lowered, when it starts to push (not the block's
-    centre: the expert approaches from behind the block, on the block-target line); press-button's is the top of the
-    button MuJoCo places."""
+    """push-block's and slide-block's goal is where the expert's gripper stands, lowered, when it starts to push (not
+    the block's centre: the expert approaches from behind the block, on the block-target line; slide-block's target
+    is implied by the block's pose); press-button's is the top of the button MuJoCo places."""
     pytest.importorskip("gym_hil", reason="the Panda scenes need gym-hil's assets")
     from tests.helpers import gl_available
 

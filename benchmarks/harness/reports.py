@@ -425,8 +425,11 @@ def _direction_arrows(ax, x, y, d, length: float, color: str) -> None:
 def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
     """Success over a 3-D evaluation grid (x, y and yaw: Panda's object pose): one x-y heat map per yaw value
     (rows: method x yaw, columns: demo counts), the training placements' (x, y) marked with their yaw written next
-    to them; for push-block and pick-place an arrow per cell and demo towards its target. Returns the panels' titles (each names its yaw)."""
+    to them; for a task with a target (push-block, pick-place, slide-block) an arrow per cell and demo towards it.
+    Returns the panels' titles (each names its yaw)."""
     import numpy as np
+
+    from lerobot_rnd.sim.panda_scene import placement_target_xy
 
     plt = _mpl()
     b, runs = res["benchmark"], res["runs"]
@@ -435,8 +438,11 @@ def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
     gx, gy, gz = es["grid_x"], es["grid_y"], es["grid_z"]
     G, Gy, Z = len(gx), len(gy), len(gz)
     ms, ns = b["methods"], sorted(b["demos"])
-    # push-block / pick-place placements end with the target's (x, y): draw where each cell and demo pushes to
-    targets = task in ("push-block", "pick-place") and bool(es["placements"]) and len(es["placements"][0]) >= 5
+    # where each cell and demo pushes or carries its object to (the target's (x, y), from the placement)
+    def to_target(P: np.ndarray) -> np.ndarray:
+        return np.stack([placement_target_xy(task, p) for p in P]) - P[:, :2]
+
+    targets = bool(es["placements"]) and placement_target_xy(task, es["placements"][0]) is not None
     hx = (gx[-1] - gx[0]) / max(1, G - 1) / 2
     hy = (gy[-1] - gy[0]) / max(1, Gy - 1) / 2
     ext = [gx[0] - hx, gx[-1] + hx, gy[0] - hy, gy[-1] + hy]
@@ -460,14 +466,13 @@ def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
                             grid[iy, ix] = v
                             k, cnt = k + v, cnt + 1
                 im = ax.imshow(grid, origin="lower", extent=ext, vmin=0, vmax=1, cmap="RdYlGn", aspect="auto")
-                if targets:  # each cell's direction from the object to its target (push-block, pick-place)
+                if targets:  # each cell's direction from the object to its target
                     here = [k for k, c in enumerate(es["cells"]) if c[2] == iz]
                     if here:
                         P = np.asarray([es["placements"][k] for k in here], dtype=float)
-                        _direction_arrows(ax, P[:, dims[0]], P[:, dims[1]], P[:, 3:5] - P[:, :2], 0.7 * min(hx, hy), "k")
+                        _direction_arrows(ax, P[:, dims[0]], P[:, dims[1]], to_target(P), 0.7 * min(hx, hy), "k")
                     if len(tr):
-                        _direction_arrows(ax, tr[:, dims[0]], tr[:, dims[1]], tr[:, 3:5] - tr[:, :2],
-                                          0.45 * min(hx, hy), "navy")  # fmt: skip
+                        _direction_arrows(ax, tr[:, dims[0]], tr[:, dims[1]], to_target(tr), 0.45 * min(hx, hy), "navy")
                 if len(tr):
                     ax.scatter(tr[:, dims[0]], tr[:, dims[1]], marker="x", c="k", s=18, label="demos")
                     for p in tr:  # the yaw next to the mark, on the side towards the middle of the map

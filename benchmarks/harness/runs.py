@@ -31,11 +31,12 @@ DEMO_PLACEMENTS = {
            "to the range) of a pool of 1000 valid placements drawn with the recording seed; the first is the pool "
            "point nearest the pool's mean",
     "fps-centre": "lerobot-rnd-record --placements fps-centre: furthest point sampling over the object's x, y and "
-                  "yaw (scaled to their range; yaw compared modulo the object's 90-degree symmetry), starting at the centre of the range; pool = the centre + 999 "
+                  "yaw (scaled to their range; yaw compared modulo the object's 90-degree symmetry, except slide-block's, whose "
+                  "target turns with the block), starting at the centre of the range; pool = the centre + 999 "
                   "uniform draws with the recording seed; the other coordinates (push-block / pick-place: the "
                   "target x, y) drawn uniformly from their range with the recording seed's generator until the "
                   "placement is valid (the target 10 cm or more from the object, push-block's 22 cm or less), as "
-                  "the random protocol draws them",
+                  "the random protocol draws them; slide-block has no other coordinate (its target follows the block)",
 }  # fmt: skip
 
 

@@ -85,13 +85,14 @@ SUITES: dict[str, dict] = {
         # --protocol spatial: furthest-point sampling over (x, y, yaw mod 90 degrees) from the centre of the range (the
         # recorder's fps-centre); the grid: cell centres over x, y and yaw; the target (push-block, pick-place)
         # drawn uniformly from its range by a seeded generator until valid (10 cm or more from the object;
-        # push-block: 22 cm or less), for demos (the recording seed) and grid cells (cell i: eval_seed + i) alike
+        # push-block: 22 cm or less), for demos (the recording seed) and grid cells (cell i: eval_seed + i) alike;
+        # slide-block's target follows the block (RLBench's slide-block-to-target), so yaw is not taken mod 90 there
         fps_mode="fps-centre", grid_layout="cells", grid_others="seeded", grid_dims=(0, 1, 2),
         scales={
             # episode_length: the recorder's limit for the expert (as MetaWorld's 300): 2.2 x the 54 steps the
             # expert needs for pick-place, 4-7 x the other tasks' 17-30 (benchmarks/results/panda_env_speed.json)
             "smoke": dict(tasks="lift-cube", episode_length=16, grid=3, grid_yaws=3, config_files=_PANDA_CPU_FILES),
-            "cpu": dict(tasks="lift-cube,push-block,press-button,pick-place", episode_length=120, grid=3,
+            "cpu": dict(tasks="lift-cube,push-block,press-button,pick-place,slide-block", episode_length=120, grid=3,
                         grid_yaws=3, config_files=_PANDA_CPU_FILES),
         },
     ),

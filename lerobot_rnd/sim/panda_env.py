@@ -12,6 +12,10 @@
 - ``pick-place``: pick the 4 cm cube (random position and yaw) and put it down on a green target disc;
   success = cube resting on the table (centre below 2.5 cm) within :data:`PLACE_SUCCESS_RADIUS` (3 cm)
   of the disc centre with the gripper opened (opening > 0.5).
+- ``slide-block``: push-block with the target rigid to the block, as RLBench's "slide block to target" (the
+  paper's spatial-generalisation task, where block and target are placed as one): the disc lies
+  ``panda_scene.SLIDE_DISTANCE`` (10 cm) along the block's local +y axis, so the push direction, and the gripper's yaw,
+  turn with the block's yaw (+-45 degrees); the placement is the block's [x, y, yaw] only.
 
 The scene (:mod:`lerobot_rnd.sim.panda_scene`) is gym-hil's Panda with the Robotiq 2F-85
 (``gym_hil/assets/panda.xml``, gym-hil 0.1.14 is used only for its assets) plus a floor, lights, a static
@@ -57,7 +61,8 @@ while moving at full speed: the EE poses reached k steps later match the adapter
 (k=1) ... 14 mm (k=8) on average on expert demonstrations).
 
 Placement (:meth:`RnDPandaEnv.placement_space`): ``lift-cube`` / ``press-button``: [x, y, yaw] of the
-cube / button box; ``push-block`` / ``pick-place``: [block / cube x, y, yaw, target x, y].
+cube / button box / slide-block's block; ``push-block`` / ``pick-place``: [block / cube x, y, yaw, target x, y]
+(:func:`placement_target_xy` gives every task's target from its placement).
 ``reset(options={"placement": vec})`` for an exact placement; otherwise ``placement="random"`` draws
 from the range with the env's seeded RNG (``reset(seed=...)`` makes it reproducible), or
 ``placement="fixed"`` cycles through ``placements``.
@@ -105,6 +110,7 @@ from lerobot_rnd.sim.panda_scene import (
     START_POS,
     build_model,
     check_task,
+    placement_target_xy,
 )
 from lerobot_rnd.sim.quaternions import matrix_to_quat, quat_from_rotvec, quat_mul, yaw_quat
 
@@ -116,6 +122,7 @@ TASK_DESCRIPTIONS = {
     "push-block": "Push the blue block onto the green target",
     "press-button": "Press the red button",
     "pick-place": "Put the purple cube on the green target",
+    "slide-block": "Slide the blue block onto the green target",
 }
 DEFAULT_CAMERAS = ("front", "wrist")
 STATE_NAMES = ["ee_x", "ee_y", "ee_z", "ee_qw", "ee_qx", "ee_qy", "ee_qz", "gripper_open"]
@@ -160,6 +167,9 @@ PLACEMENT_RANGES = {
         np.array([0.35, -0.15, -math.pi / 4, 0.33, -0.18]),
         np.array([0.55, 0.15, math.pi / 4, 0.57, 0.18]),
     ),
+    # block x, y, yaw (the target follows, SLIDE_DISTANCE along the block's +y: the range leans to -y so that the
+    # target, 7-10 cm further to +y, stays inside the front camera's view, x 0.31-0.57, y -0.07-0.18)
+    "slide-block": (np.array([0.38, -0.14, -math.pi / 4]), np.array([0.50, 0.08, math.pi / 4])),
 }
 PLACE_MIN_DISTANCE = 0.10
 PUSH_MIN_DISTANCE = 0.10
@@ -268,14 +278,15 @@ class RnDPandaEnv(RnDMuJoCoEnv):
     def placement_periods(self) -> np.ndarray:
         """Per placement coordinate, the period after which the scene looks the same (0: none): the object's yaw
         repeats every 90 degrees (the cube, the 5 x 5 cm block and the square button box are square from above),
-        so the two ends of its [-45, 45]-degree range are one pose. Furthest-point sampling of demos uses it."""
+        so the two ends of its [-45, 45]-degree range are one pose. Furthest-point sampling of demos uses it.
+        slide-block's yaw has none: its target turns with the block, 90 degrees apart it lies elsewhere."""
         periods = np.zeros(len(PLACEMENT_RANGES[self.task][0]))
-        periods[2] = OBJECT_YAW_PERIOD
+        periods[2] = 0.0 if self.task == "slide-block" else OBJECT_YAW_PERIOD
         return periods
 
     def is_valid_placement(self, placement: Sequence[float]) -> bool:
-        """Whether the placement has the right size, lies in the range (1 mm tolerance), and (push-block)
-        the target is 10-22 cm from the block with the pushing start point inside the workspace /
+        """Whether the placement has the right size, lies in the range (1 mm tolerance), and (push-block,
+        slide-block) the target is 10-22 cm from the block with the pushing start point inside the workspace /
         (pick-place) at least 10 cm from the cube."""
         vec = np.asarray(placement, dtype=np.float64)
         low, high = PLACEMENT_RANGES[self.task]
@@ -283,10 +294,10 @@ class RnDPandaEnv(RnDMuJoCoEnv):
             return False
         if np.any(vec < low - 1e-3) or np.any(vec > high + 1e-3):
             return False
-        if self.task == "push-block":
-            d = vec[3:5] - vec[0:2]
+        if self.task in ("push-block", "slide-block"):
+            d = placement_target_xy(self.task, vec) - vec[0:2]
             dist = float(np.linalg.norm(d))
-            if not PUSH_MIN_DISTANCE <= dist <= PUSH_MAX_DISTANCE:
+            if not PUSH_MIN_DISTANCE - 1e-6 <= dist <= PUSH_MAX_DISTANCE + 1e-6:
                 return False
             start = vec[0:2] - d / dist * 0.08
             lo, hi = WORKSPACE_BOUNDS[0, :2] + 0.02, WORKSPACE_BOUNDS[1, :2] - 0.02
@@ -321,11 +332,11 @@ class RnDPandaEnv(RnDMuJoCoEnv):
             d.qpos[adr + 3 : adr + 7] = yaw_quat(vec[2])
             if self.task == "pick-place":
                 m.body_pos[m.body("target_marker").id] = [vec[3], vec[4], 0.0]
-        elif self.task == "push-block":
+        elif self.task in ("push-block", "slide-block"):
             adr = m.joint("block").qposadr[0]
             d.qpos[adr : adr + 3] = [vec[0], vec[1], BLOCK_HALF[2]]
             d.qpos[adr + 3 : adr + 7] = yaw_quat(vec[2])
-            m.body_pos[m.body("target_marker").id] = [vec[3], vec[4], 0.0]
+            m.body_pos[m.body("target_marker").id] = [*placement_target_xy(self.task, vec), 0.0]
         elif self.task == "press-button":
             b = m.body("button_box").id
             m.body_pos[b] = [vec[0], vec[1], 0.0]
@@ -425,19 +436,19 @@ class RnDPandaEnv(RnDMuJoCoEnv):
         d = self.data
         if self.task in ("lift-cube", "pick-place"):
             return d.body("cube").xpos.copy()
-        if self.task == "push-block":
+        if self.task in ("push-block", "slide-block"):
             return d.body("block").xpos.copy()
         top = 2 * (BUTTON_HOUSING_HALF[2] + BUTTON_HALF_HEIGHT)
         return d.body("button_box").xpos.copy() + np.array([0.0, 0.0, top])
 
     def object_quat(self) -> np.ndarray:
         d = self.data
-        name = {"push-block": "block", "press-button": "button_box"}.get(self.task, "cube")
+        name = {"push-block": "block", "slide-block": "block", "press-button": "button_box"}.get(self.task, "cube")
         return d.body(name).xquat.copy()
 
     def target_pos(self) -> np.ndarray | None:
-        """push-block / pick-place: the target disc centre (on the table)."""
-        if self.task not in ("push-block", "pick-place"):
+        """push-block / pick-place / slide-block: the target disc centre (on the table)."""
+        if self.task not in ("push-block", "pick-place", "slide-block"):
             return None
         return self.data.body("target_marker").xpos.copy()
 
@@ -451,7 +462,7 @@ class RnDPandaEnv(RnDMuJoCoEnv):
     def success_now(self) -> bool:
         if self.task == "lift-cube":
             return bool(self.object_pos()[2] - self._object_z0 > LIFT_SUCCESS_HEIGHT)
-        if self.task == "push-block":
+        if self.task in ("push-block", "slide-block"):
             return bool(np.linalg.norm(self.object_pos()[:2] - self.target_pos()[:2]) < PUSH_SUCCESS_RADIUS)
         if self.task == "pick-place":
             p = self.object_pos()

@@ -9,8 +9,8 @@ with the controller's lag. The state machine restarts whenever the env is at ste
 
 - ``lift-cube``: above the cube with the gripper turned to the cube's yaw (modulo 90 degrees, so the
   fingers close on two opposite faces), descend, close, lift to 20 cm (re-grasps if the cube drops).
-- ``push-block``: closed gripper turned so that the broad side of the finger pads faces the push
-  direction, go behind the block on the block-target line, lower, push along the (re-planned every
+- ``push-block`` and ``slide-block``: closed gripper turned so that the broad side of the finger pads faces the
+  push direction, go behind the block on the block-target line, lower, push along the (re-planned every
   step) line; back off and re-approach when the block slips sideways.
 - ``press-button``: close the gripper, go above the button (turned to the box's yaw modulo 90 degrees),
   press with the finger tips until the button is down, lift.
@@ -32,6 +32,7 @@ from lerobot_rnd.sim.panda_scene import (
     CUBE_HALF,
     HOME_QUAT,
     PANDA_TASKS,
+    placement_target_xy,
 )
 from lerobot_rnd.sim.quaternions import matrix_to_quat, quat_mul, quat_to_rotvec, yaw_quat
 
@@ -63,12 +64,12 @@ def push_start_xy(block_xy: np.ndarray, target_xy: np.ndarray) -> np.ndarray:
 def first_contact_point(task: str, placement) -> np.ndarray:
     """(3,) world position (m) of the EE where the scripted expert of ``task`` first meets its object, from an
     episode's placement [x, y, yaw, (target x, y)]: lift-cube / pick-place the cube's centre (the grasp);
-    push-block the push start behind the block at pushing height; press-button the button's top."""
+    push-block / slide-block the push start behind the block at pushing height; press-button the button's top."""
     p = np.asarray(placement, np.float64)
     if task in ("lift-cube", "pick-place"):
         return np.array([p[0], p[1], CUBE_HALF])
-    if task == "push-block":
-        return np.array([*push_start_xy(p[:2], p[3:5]), PUSH_Z])
+    if task in ("push-block", "slide-block"):
+        return np.array([*push_start_xy(p[:2], placement_target_xy(task, p)), PUSH_Z])
     if task == "press-button":
         return np.array([p[0], p[1], 2 * (BUTTON_HOUSING_HALF[2] + BUTTON_HALF_HEIGHT)])
     raise ValueError(f"unknown Panda task {task!r}; known: {', '.join(PANDA_TASKS)}")
@@ -291,7 +292,7 @@ class PandaExpert:
             a = self._lift_cube(env)
         elif self.task == "pick-place":
             a = self._lift_cube(env, place=True)
-        elif self.task == "push-block":
+        elif self.task in ("push-block", "slide-block"):
             a = self._push_block(env)
         else:
             a = self._press_button(env)

