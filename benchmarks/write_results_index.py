@@ -151,7 +151,9 @@ STATUS: dict[str, tuple[str, str]] = {
                       "of full speed, R&D-AI with 16-px patches: with 8 demos R&D-AI 21/27, ACT 4/27; with 2 demos "
                       "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27, ACT 0/27; push-block (a random target per "
                       "episode, demos and test cells alike; the earlier rule is archived as "
-                      "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27 (ACT running); "
+                      "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27 (ACT's run paused at "
+                      "step 250); slide-block (the target 10 cm along the block's +y axis, RLBench's "
+                      "slide-block-to-target) with 8 demos R&D-AI 1/27 (ACT running); "
                       "on their own 8 "
                       "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
                       "the 16-px diagnostic run (outputs/diag/p16_work, its run JSON has the command), evaluated on "
@@ -188,6 +190,14 @@ STATUS: dict[str, tuple[str, str]] = {
                                                                    "once the arm has moved (0.47, 0.50 at frame 8). "
                                                                    "On its own 8 demo placements it succeeds at none "
                                                                    "(panda_spatial/train_placements_push-block_n8.json).")),
+    "trace_panda_slide_rnd_ai_n8.json": (CURRENT, ("The panda_spatial R&D-AI slide-block checkpoint (8 demos) on "
+                                         "validation seeds 100-119: 2/20; at step 30 its gripper follows the push "
+                                         "start's y halfway (slope 0.48) and not its x, the front camera's depth "
+                                         "(-0.11; the demos 0.85, 1.15).")),
+    "chunk_goal_response_panda_slide_rnd_ai_n8.json": (CURRENT, ("The same checkpoint on its own demos, open loop: "
+                                                       "the first chunk follows the demos' x (slope 0.66) but hardly "
+                                                       "their y (0.20) or the gripper's turn (0.08); from frame 8 "
+                                                       "it follows x and y (0.83, 0.88), the turn less (0.41).")),
     "panda_camera_views_lift-cube.json": (CURRENT, "How large the cube appears in the Panda cameras at the start pose, at "
                                           "the centre and the four (x, y) corners of lift-cube's placement range "
                                           "(benchmarks/camera_views.py): front 10-16 px wide at 128 px; the "
