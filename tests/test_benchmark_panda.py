@@ -334,3 +334,12 @@ def test_a_run_trained_on_other_placements_than_its_dataset_now_holds_is_not_res
     b.datasets["push-block"][8]["placements"] = [demos[0], [0.36, 0.11, -0.76, 0.45, 0.0]]
     with pytest.raises(SystemExit, match="other placements.*move"):
         b.run_one("act", "push-block", 8, 0)
+
+
+def test_demo_yaw_labels_of_nearby_demos_are_stacked_not_printed_over_each_other():
+    """Hand-worked offsets (points): a label sits 3 points from its mark towards the middle of the map; each earlier
+    mark within 8% of the map's width and height pushes it 6 points further away in y."""
+    x = [0.10, 0.12, 0.90, 0.13, 0.50]
+    y = [0.10, 0.11, 0.90, 0.10, 0.10]
+    offsets = reports._label_offsets(x, y, [0.0, 1.0, 0.0, 1.0])
+    assert offsets == [(3.0, 3.0), (3.0, 9.0), (-3.0, -3.0), (3.0, 15.0), (3.0, 3.0)]

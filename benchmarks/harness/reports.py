@@ -412,6 +412,22 @@ def _deg(rad: float) -> str:
     return f"{math.degrees(rad):+.0f}°"
 
 
+def _label_offsets(x, y, ext, near: float = 0.08, step: float = 6.0) -> list[tuple[float, float]]:
+    """Text offsets (points) for labels next to the marks at (x, y) on a map spanning ``ext`` = [x0, x1, y0, y1]:
+    each label on the side towards the middle of the map, 3 points from its mark; a mark within ``near`` (a fraction
+    of the map's width and height) of earlier ones has its label pushed ``step`` points further per such mark, away
+    from them in y, so the labels of demos placed close together do not print over each other."""
+    span = (max(ext[1] - ext[0], 1e-12), max(ext[3] - ext[2], 1e-12))
+    offsets: list[tuple[float, float]] = []
+    for i in range(len(x)):
+        right = x[i] <= (ext[0] + ext[1]) / 2
+        up = y[i] <= (ext[2] + ext[3]) / 2
+        crowd = sum(abs(x[i] - x[j]) / span[0] < near and abs(y[i] - y[j]) / span[1] < near for j in range(i))
+        dy = 3 + step * crowd
+        offsets.append((3.0 if right else -3.0, dy if up else -dy))
+    return offsets
+
+
 def _direction_arrows(ax, x, y, d, length: float, color: str) -> None:
     """Arrows of one ``length`` (data units) from the points (x, y) along the (N, 2) directions ``d``."""
     import numpy as np
@@ -475,12 +491,11 @@ def plot_heatmap_3d(res: dict, task: str, path: Path) -> list[str]:
                         _direction_arrows(ax, tr[:, dims[0]], tr[:, dims[1]], to_target(tr), 0.45 * min(hx, hy), "navy")
                 if len(tr):
                     ax.scatter(tr[:, dims[0]], tr[:, dims[1]], marker="x", c="k", s=18, label="demos")
-                    for p in tr:  # the yaw next to the mark, on the side towards the middle of the map
-                        right = p[dims[0]] <= (ext[0] + ext[1]) / 2
-                        up = p[dims[1]] <= (ext[2] + ext[3]) / 2
-                        ax.annotate(_deg(p[dims[2]]), (p[dims[0]], p[dims[1]]), fontsize=5,
-                                    xytext=(3 if right else -3, 3 if up else -3), textcoords="offset points",
-                                    ha="left" if right else "right", va="bottom" if up else "top")  # fmt: skip
+                    offsets = _label_offsets(tr[:, dims[0]], tr[:, dims[1]], ext)
+                    for p, (ox, oy) in zip(tr, offsets, strict=True):  # the yaw next to the mark
+                        ax.annotate(_deg(p[dims[2]]), (p[dims[0]], p[dims[1]]), fontsize=5, xytext=(ox, oy),
+                                    textcoords="offset points", ha="left" if ox > 0 else "right",
+                                    va="bottom" if oy > 0 else "top")  # fmt: skip
                 rate = f"{100 * k / cnt:.0f}% of {cnt}" if cnt else "–"
                 title = f"{METHODS[m][1]}, {n} demos, yaw {_deg(z)}: {rate}"
                 titles.append(title)
