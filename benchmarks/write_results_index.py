@@ -153,7 +153,7 @@ STATUS: dict[str, tuple[str, str]] = {
                       "episode, demos and test cells alike; the earlier rule is archived as "
                       "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27 (ACT's run paused at "
                       "step 250); slide-block (the target 10 cm along the block's +y axis, RLBench's "
-                      "slide-block-to-target) with 8 demos R&D-AI 1/27 (ACT running); "
+                      "slide-block-to-target) with 8 demos R&D-AI 1/27, ACT 1/27; "
                       "on their own 8 "
                       "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
                       "the 16-px diagnostic run (outputs/diag/p16_work, its run JSON has the command), evaluated on "
@@ -194,6 +194,9 @@ STATUS: dict[str, tuple[str, str]] = {
                                          "validation seeds 100-119: 2/20; at step 30 its gripper follows the push "
                                          "start's y halfway (slope 0.48) and not its x, the front camera's depth "
                                          "(-0.11; the demos 0.85, 1.15).")),
+    "trace_panda_slide_rnd_ai_n8_steps4.json": (CURRENT, ("The same checkpoint and seeds sampled with 4 denoising "
+                                                "steps instead of 1: 2/20 again, step-30 slopes x -0.05, y 0.41: the "
+                                                "number of sampling steps is not why it fails.")),
     "chunk_goal_response_panda_slide_rnd_ai_n8.json": (CURRENT, ("The same checkpoint on its own demos, open loop: "
                                                        "the first chunk follows the demos' x (slope 0.66) but hardly "
                                                        "their y (0.20) or the gripper's turn (0.08); from frame 8 "
