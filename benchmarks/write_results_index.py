@@ -153,7 +153,7 @@ STATUS: dict[str, tuple[str, str]] = {
                       "episode, demos and test cells alike; the earlier rule is archived as "
                       "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27 (ACT's run paused at "
                       "step 250); slide-block (the target 10 cm along the block's +y axis, RLBench's "
-                      "slide-block-to-target) with 8 demos R&D-AI 1/27, ACT 1/27; "
+                      "slide-block-to-target) with 8 demos R&D-AI 1/27, ACT 1/27, with 16 demos R&D-AI 0/27; "
                       "on their own 8 "
                       "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
                       "the 16-px diagnostic run (outputs/diag/p16_work, its run JSON has the command), evaluated on "
