@@ -153,7 +153,9 @@ def test_slide_block_target_turns_with_the_block_and_so_does_the_push():
     the expert pushes along that axis with the gripper turned by the block's yaw (modulo 180 degrees)."""
     env = small_env("slide-block", episode_length=80)
     assert env.placement_periods()[2] == 0.0
-    assert small_env("push-block").placement_periods()[2] == pytest.approx(math.pi / 2)
+    push = small_env("push-block")
+    assert push.placement_periods()[2] == pytest.approx(math.pi / 2)
+    push.close()
     low, high = env.placement_space.low, env.placement_space.high
     rng = np.random.default_rng(0)
     for placement in [low, high, [low[0], high[1], high[2]], *rng.uniform(low, high, (3, 3))]:

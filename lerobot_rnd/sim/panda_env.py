@@ -96,6 +96,7 @@ from lerobot_rnd.sim.mujoco_env import RnDMuJoCoEnv, RnDSimEnvConfig, register_g
 from lerobot_rnd.sim.opspace import OpSpaceController
 from lerobot_rnd.sim.panda_scene import (
     BLOCK_HALF,
+    BLOCK_TASKS,
     BUTTON_HALF_HEIGHT,
     BUTTON_HOUSING_HALF,
     CUBE_HALF,
@@ -294,7 +295,7 @@ class RnDPandaEnv(RnDMuJoCoEnv):
             return False
         if np.any(vec < low - 1e-3) or np.any(vec > high + 1e-3):
             return False
-        if self.task in ("push-block", "slide-block"):
+        if self.task in BLOCK_TASKS:
             d = placement_target_xy(self.task, vec) - vec[0:2]
             dist = float(np.linalg.norm(d))
             if not PUSH_MIN_DISTANCE - 1e-6 <= dist <= PUSH_MAX_DISTANCE + 1e-6:
@@ -332,7 +333,7 @@ class RnDPandaEnv(RnDMuJoCoEnv):
             d.qpos[adr + 3 : adr + 7] = yaw_quat(vec[2])
             if self.task == "pick-place":
                 m.body_pos[m.body("target_marker").id] = [vec[3], vec[4], 0.0]
-        elif self.task in ("push-block", "slide-block"):
+        elif self.task in BLOCK_TASKS:
             adr = m.joint("block").qposadr[0]
             d.qpos[adr : adr + 3] = [vec[0], vec[1], BLOCK_HALF[2]]
             d.qpos[adr + 3 : adr + 7] = yaw_quat(vec[2])
@@ -436,14 +437,14 @@ class RnDPandaEnv(RnDMuJoCoEnv):
         d = self.data
         if self.task in ("lift-cube", "pick-place"):
             return d.body("cube").xpos.copy()
-        if self.task in ("push-block", "slide-block"):
+        if self.task in BLOCK_TASKS:
             return d.body("block").xpos.copy()
         top = 2 * (BUTTON_HOUSING_HALF[2] + BUTTON_HALF_HEIGHT)
         return d.body("button_box").xpos.copy() + np.array([0.0, 0.0, top])
 
     def object_quat(self) -> np.ndarray:
         d = self.data
-        name = {"push-block": "block", "slide-block": "block", "press-button": "button_box"}.get(self.task, "cube")
+        name = "block" if self.task in BLOCK_TASKS else {"press-button": "button_box"}.get(self.task, "cube")
         return d.body(name).xquat.copy()
 
     def target_pos(self) -> np.ndarray | None:
@@ -462,7 +463,7 @@ class RnDPandaEnv(RnDMuJoCoEnv):
     def success_now(self) -> bool:
         if self.task == "lift-cube":
             return bool(self.object_pos()[2] - self._object_z0 > LIFT_SUCCESS_HEIGHT)
-        if self.task in ("push-block", "slide-block"):
+        if self.task in BLOCK_TASKS:
             return bool(np.linalg.norm(self.object_pos()[:2] - self.target_pos()[:2]) < PUSH_SUCCESS_RADIUS)
         if self.task == "pick-place":
             p = self.object_pos()

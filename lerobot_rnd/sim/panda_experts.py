@@ -26,6 +26,7 @@ import numpy as np
 
 from lerobot_rnd.sim.panda_scene import (
     BLOCK_HALF,
+    BLOCK_TASKS,
     BUTTON_HALF_HEIGHT,
     BUTTON_HOUSING_HALF,
     BUTTON_TRAVEL,
@@ -68,7 +69,7 @@ def first_contact_point(task: str, placement) -> np.ndarray:
     p = np.asarray(placement, np.float64)
     if task in ("lift-cube", "pick-place"):
         return np.array([p[0], p[1], CUBE_HALF])
-    if task in ("push-block", "slide-block"):
+    if task in BLOCK_TASKS:
         return np.array([*push_start_xy(p[:2], placement_target_xy(task, p)), PUSH_Z])
     if task == "press-button":
         return np.array([p[0], p[1], 2 * (BUTTON_HOUSING_HALF[2] + BUTTON_HALF_HEIGHT)])
@@ -292,7 +293,7 @@ class PandaExpert:
             a = self._lift_cube(env)
         elif self.task == "pick-place":
             a = self._lift_cube(env, place=True)
-        elif self.task in ("push-block", "slide-block"):
+        elif self.task in BLOCK_TASKS:
             a = self._push_block(env)
         else:
             a = self._press_button(env)

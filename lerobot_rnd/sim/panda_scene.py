@@ -18,6 +18,8 @@ from lerobot_rnd.gripper_mesh import cluster_decimate
 from lerobot_rnd.sim.mujoco_env import default_headless_gl
 
 PANDA_TASKS = ("lift-cube", "push-block", "press-button", "pick-place", "slide-block")
+#: the tasks that push the blue block onto a target disc (the same scene, object and expert)
+BLOCK_TASKS = ("push-block", "slide-block")
 GYM_HIL_VERSION = "0.1.14"
 INSTALL_HINT = f"pip install --no-deps gym-hil=={GYM_HIL_VERSION}  (only its MuJoCo assets are used)"
 
@@ -154,7 +156,7 @@ def _task_xml(task: str) -> str:
         h = CUBE_HALF
         target = "" if task == "lift-cube" else _target_marker_xml(TARGET_RADIUS + 0.01)
         return target + _free_box_xml("cube", (h, h, h), mass=0.1, rgba=".6 .3 .6 1")
-    if task in ("push-block", "slide-block"):
+    if task in BLOCK_TASKS:
         block = _free_box_xml("block", BLOCK_HALF, mass=0.15, rgba=".15 .35 .85 1")
         return _target_marker_xml(TARGET_RADIUS) + block
     if task == "press-button":
