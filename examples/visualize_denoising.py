@@ -40,8 +40,6 @@ sys.path.insert(0, str(REPO_ROOT))
 
 from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 
-from lerobot_rnd.geometry import pose_from_action
-
 TOY_REPO_ID = "local/toy_reach"
 BG = (255, 255, 255)
 FG = (20, 20, 20)
@@ -110,9 +108,9 @@ def run_sampler(policy, batch: dict, seed: int) -> dict:
         images = images[:, None].expand(-1, cfg.n_obs_steps, -1, -1, -1, -1)
         state = state[:, None].expand(-1, cfg.n_obs_steps, -1)
     images, T_world_ee, gripper = model.prepare_observation(images, state)
-    noise = torch.randn(1, cfg.chunk_size, 6, generator=torch.Generator().manual_seed(seed)).to(device)
+    noise = torch.randn(1, cfg.chunk_size, model.action_dim, generator=torch.Generator().manual_seed(seed)).to(device)
     record: list = []
-    a0, logits = model.denoise(images, T_world_ee, gripper, noise, record=record)
+    a0, logits = model.denoise(images, T_world_ee, gripper, noise, record=record, state_now=state[:, -1])
 
     def composite_for(T_ee_target):
         return model._network_inputs(images, T_world_ee, gripper, T_ee_target, full_composite=True)["composite"]
@@ -120,7 +118,7 @@ def run_sampler(policy, batch: dict, seed: int) -> dict:
     out = {
         "images": images,
         "record": record,
-        "output": composite_for(pose_from_action(model.action_stats.unnormalize(a0))),
+        "output": composite_for(model.diffusion_space(state[:, -1]).to_pose(a0)),
         "a0": a0,
         "gripper_logits": logits,
         "demo": None,

@@ -64,9 +64,7 @@ __all__ = [
 ]
 
 
-# --------------------------------------------------------------------------------------
-# small helpers
-# --------------------------------------------------------------------------------------
+# ---- small helpers -------------------------------------------------------------------
 
 
 def _as_float(x: Tensor, name: str) -> Tensor:
@@ -127,9 +125,7 @@ def _matrix_to_list(m: Tensor | None) -> list | None:
     return None if m is None else m.tolist()
 
 
-# --------------------------------------------------------------------------------------
-# chunk <-> 7-D vector
-# --------------------------------------------------------------------------------------
+# ---- chunk <-> 7-D vector ------------------------------------------------------------
 
 
 def chunk_to_vector(T_ee_target: Tensor, gripper: Tensor) -> Tensor:
@@ -147,9 +143,7 @@ def vector_to_chunk(vector: Tensor) -> tuple[Tensor, Tensor]:
     return pose_from_action(vector[..., :6]), vector[..., 6]
 
 
-# --------------------------------------------------------------------------------------
-# base class
-# --------------------------------------------------------------------------------------
+# ---- base class ----------------------------------------------------------------------
 
 
 class ActionAdapter:
@@ -310,7 +304,11 @@ class ActionAdapter:
         """(T_ee_target (..., T, 4, 4), gripper (..., T)) -> dataset action chunk (..., T, A)."""
         T_ee_target, gripper = self._check_chunk(T_ee_target, gripper)
         T_world_ee = self._check_pose(T_world_ee, T_ee_target)
-        motion = self._from_rnd_motion(T_ee_target, T_world_ee, state)
+        return self.compose_action(self._from_rnd_motion(T_ee_target, T_world_ee, state), gripper)
+
+    def compose_action(self, motion: Tensor, gripper: Tensor | None) -> Tensor:
+        """(motion columns (..., T, M) in the dataset's units, R&D gripper (..., T) in [-1 open, +1 closed]) ->
+        dataset action chunk (..., T, A)."""
         if not self.gripper:
             return motion
         if gripper is None:
@@ -356,9 +354,7 @@ class ActionAdapter:
         return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in cfg.items())})"
 
 
-# --------------------------------------------------------------------------------------
-# 1. MetaWorld-style world-frame position deltas
-# --------------------------------------------------------------------------------------
+# ---- 1. MetaWorld-style world-frame position deltas ----------------------------------
 
 
 class EEPositionDeltaAdapter(ActionAdapter):
@@ -416,9 +412,7 @@ class EEPositionDeltaAdapter(ActionAdapter):
         return {"scale": self.scale, "clip": self.clip, "clip_limit": self.clip_limit}
 
 
-# --------------------------------------------------------------------------------------
-# 2. step-to-step pose deltas
-# --------------------------------------------------------------------------------------
+# ---- 2. step-to-step pose deltas -----------------------------------------------------
 
 
 class EEDeltaAdapter(ActionAdapter):
@@ -497,9 +491,7 @@ class EEDeltaAdapter(ActionAdapter):
         }
 
 
-# --------------------------------------------------------------------------------------
-# 3. absolute EE poses
-# --------------------------------------------------------------------------------------
+# ---- 3. absolute EE poses ------------------------------------------------------------
 
 #: the rotation formats (``geometry.ROTATION_DIMS``) an absolute-pose action may use, with their column names
 _ROT_NAMES = {
@@ -553,9 +545,7 @@ class AbsoluteEEPoseAdapter(ActionAdapter):
         return {"rotation_format": self.rotation_format, "T_world_frame": _matrix_to_list(self.T_world_frame)}
 
 
-# --------------------------------------------------------------------------------------
-# 4. absolute joint positions (URDF forward / inverse kinematics)
-# --------------------------------------------------------------------------------------
+# ---- 4. absolute joint positions (URDF forward / inverse kinematics) -----------------
 
 
 class JointPositionAdapter(ActionAdapter):
@@ -696,6 +686,10 @@ class JointPositionAdapter(ActionAdapter):
             check_finite(q, "state")
         return q
 
+    def joints_from_state(self, state: Tensor) -> Tensor:
+        """The current joint positions (..., n) in the dataset's units, from the robot state (..., S)."""
+        return self._joints_from_state(state, _as_float(state, "state"))
+
     def to_urdf_units(self, q: Tensor) -> Tensor:
         """Dataset joint positions (..., n) -> URDF units (times ``joint_scale``)."""
         if self.joint_scale is None:
@@ -831,9 +825,7 @@ class JointPositionAdapter(ActionAdapter):
         }
 
 
-# --------------------------------------------------------------------------------------
-# factory
-# --------------------------------------------------------------------------------------
+# ---- factory -------------------------------------------------------------------------
 
 ACTION_ADAPTERS: dict[str, type[ActionAdapter]] = {
     cls.name: cls

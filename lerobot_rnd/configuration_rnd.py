@@ -16,6 +16,7 @@ logger = logging.getLogger(__name__)
 
 RND_VARIANTS = ("A", "I", "AI")
 POINT_UPDATES = ("x0", "ddim")  # lerobot_rnd.sampler
+DIFFUSION_SPACES = ("ee_pose", "joints")  # lerobot_rnd.diffusion_space
 PATCH_EMBEDS = ("linear", "conv")  # lerobot_rnd.network.patch_embedding
 
 #: Git tag of the last commit whose config still had the `RETIRED_FIELDS` switches (docs/BENCHMARKS.md).
@@ -177,6 +178,10 @@ class RnDConfig(PreTrainedConfig):
         num_train_timesteps: Training diffusion steps K (squared-cosine DDIM schedule).
         num_inference_steps: DDIM steps at inference (the paper: 4; the CPU tier: 1).
         final_action_step: After the DDIM steps, one more pass whose action-space prediction is the final action.
+        diffusion_space: What is diffused: "ee_pose" (the paper: each step's rigid motion from the current
+            end-effector pose, 6-D) or "joints" (the dataset's joint targets, with the gripper drawn at FK(q): every
+            candidate is reachable; for arms with fewer than 6 joints, such as the SO-101; needs the
+            joint_positions action adapter).
         point_update: How the image-space prediction updates the action: "x0" (one SVD to the predicted clean
             points, then a DDIM step in action space) or "ddim" (the paper's Eq. applied to camera-frame points).
         stats_num_samples: Samples rendered to estimate the image-space target statistics when training.
@@ -232,6 +237,7 @@ class RnDConfig(PreTrainedConfig):
     num_train_timesteps: int = 50
     num_inference_steps: int = 4
     final_action_step: bool = True
+    diffusion_space: str = "ee_pose"
     point_update: str = "x0"
     stats_num_samples: int = 256
 
@@ -259,7 +265,7 @@ class RnDConfig(PreTrainedConfig):
 
     def _check_choices(self) -> None:
         for name, choices in (("variant", RND_VARIANTS), ("point_update", POINT_UPDATES),
-                              ("patch_embed", PATCH_EMBEDS)):  # fmt: skip
+                              ("patch_embed", PATCH_EMBEDS), ("diffusion_space", DIFFUSION_SPACES)):  # fmt: skip
             if getattr(self, name) not in choices:
                 raise ValueError(f"`{name}` must be one of {choices}. Got {getattr(self, name)!r}.")
         if self.patch_embed == "conv" and self.patch_size % 8:

@@ -21,13 +21,14 @@ from torch import Tensor, nn
 
 from lerobot_rnd.action_adapters import ActionAdapter
 from lerobot_rnd.configuration_rnd import RnDConfig, migrate_saved_config
+from lerobot_rnd.diffusion_space import EEPoseSpace, JointSpace, check_diffusion_space, diffusion_dim
 from lerobot_rnd.embodiment_binding import (
     CameraRig,
     EEPoseReader,
     MeshBuffers,
     resolve_embodiment,
 )
-from lerobot_rnd.geometry import action_from_pose, invert_transform, pose_from_action
+from lerobot_rnd.geometry import invert_transform
 from lerobot_rnd.network import (
     MLP_RATIO,
     RnDDenoiser,
@@ -325,8 +326,10 @@ class RnDModel(nn.Module):
         self.ee_reader = EEPoseReader(config.ee_pose, config.robot_state_feature.shape[0])
         self.action_adapter = ActionAdapter.from_dict(dict(config.action_adapter))
         self._check_action_dim()
+        check_diffusion_space(config.diffusion_space, self.action_adapter)
         t = config.chunk_size
-        self.action_stats = MinMaxStats((6,))  # the 6-D action, normalised jointly over the horizon
+        self.action_dim = diffusion_dim(config.diffusion_space, self.action_adapter)  # D of the diffused variable
+        self.action_stats = MinMaxStats((self.action_dim,))  # normalised jointly over the horizon
         self.displacement_stats = MinMaxStats((len(self.camera_keys), 3, 1, 1))
 
         self.patch_grid = (config.image_size[0] // config.patch_size, config.image_size[1] // config.patch_size)
@@ -349,6 +352,7 @@ class RnDModel(nn.Module):
             gripper_patches=config.gripper_patches,
             patch_embed=config.patch_embed,
             n_tasks=len(config.tasks) if config.task_conditioning else 0,
+            action_dim=self.action_dim,
         )
         # BCE weight of the "closed" class: open/closed ratio of the dataset's gripper targets.
         self.register_buffer("gripper_pos_weight", torch.ones(()))
@@ -412,12 +416,23 @@ class RnDModel(nn.Module):
             ee_pose=self.ee_reader.pose,
             gripper_state=self.ee_reader.gripper,
             to_rnd=self.action_adapter.to_rnd,
+            diffusion_target=lambda action, T_ee_target, state_now: self.diffusion_space(state_now).target(
+                action, T_ee_target
+            ),
             noisy_sample_targets=self.noisy_sample_targets,
             device=self.action_stats.min.device,
         )
         self.action_stats.set(stats["action_min"], stats["action_max"])
         self.displacement_stats.set(stats["displacement_min"], stats["displacement_max"])
         self.gripper_pos_weight.fill_(float(stats["gripper_pos_weight"]))
+
+    def diffusion_space(self, state_now: Tensor | None, action_stats: MinMaxStats | None = None):
+        """The space of the diffused variable (`lerobot_rnd.diffusion_space`) for a batch whose current state is
+        state_now (B, S) (needed for "joints"), normalised by `action_stats` (default the model's own)."""
+        stats = self.action_stats if action_stats is None else action_stats
+        if self.config.diffusion_space == "joints":
+            return JointSpace(stats, self.action_adapter, state_now)
+        return EEPoseSpace(stats)
 
     def normalize_displacement(self, x: Tensor) -> Tensor:
         """Metric displacements (..., C, 3, N) on the predicted pixels -> normalised (per camera and axis)."""
@@ -560,7 +575,7 @@ class RnDModel(nn.Module):
         task_index: Tensor | None = None,
     ):
         """The denoiser on rendered inputs (`task_index` (B,) when conditioning on tasks). Returns float32
-        (displacement (B, T, C, 3, N) on the predicted pixels or None, action update (B, T, 6) or None, gripper
+        (displacement (B, T, C, 3, N) on the predicted pixels or None, action update (B, T, D) or None, gripper
         logits (B, T))."""
         extra = {} if task_index is None else {"task_index": task_index}
         with self._autocast(a.device.type):
@@ -574,27 +589,29 @@ class RnDModel(nn.Module):
         return displacement, None if update is None else update.float(), logits.float()
 
     def noisy_sample_targets(
-        self, images: Tensor, T_world_ee: Tensor, gripper: Tensor, T_ee_target: Tensor, generator=None,
-        action_stats: MinMaxStats | None = None,
+        self, images: Tensor, T_world_ee: Tensor, gripper: Tensor, T_ee_target: Tensor, x_target: Tensor,
+        state_now: Tensor | None = None, generator=None, action_stats: MinMaxStats | None = None,
     ) -> dict:
         """Noise a ground-truth chunk (Eq. 1), render it, and compute the training targets (Algorithm 1; used by
         training and by the statistics estimate).
 
-        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper (B, H), T_ee_target (B, T, 4, 4);
-        action_stats: the action normalisation to noise in (default the model's own).
-        Returns the `_network_inputs` dict plus k (B,), a_gt / a_noisy (B, T, 6) normalised, and
+        images (B, H, C, 3, h, w), T_world_ee (B, H, 4, 4), gripper (B, H), T_ee_target (B, T, 4, 4) the
+        ground-truth poses and x_target (B, T, D) their unnormalised diffused variable (`diffusion_space(...)
+        .target`); state_now (B, S): the current state (needed for "joints"); action_stats: the normalisation to
+        noise in (default the model's own).
+        Returns the `_network_inputs` dict plus k (B,), a_gt / a_noisy (B, T, D) normalised, and
         displacement (B, T, C, 3, N): the metric image-space target F_gt = T(a_gt, a_noisy) P - P (Eq. 6) at the
         predicted pixels (meaningful on `target_mask`).
         """
         cfg = self.config
-        stats = self.action_stats if action_stats is None else action_stats
+        space = self.diffusion_space(state_now, action_stats)
         b = T_ee_target.shape[0]
         device = T_ee_target.device
-        a_gt = stats.normalize(action_from_pose(T_ee_target))
+        a_gt = space.normalize(x_target)
         k = torch.randint(0, cfg.num_train_timesteps, (b,), generator=generator, device="cpu").to(device)
         eps = torch.randn(a_gt.shape, generator=generator, device="cpu").to(device)
         a_noisy = self.noise_scheduler.add_noise(a_gt, eps, k).clamp(-1, 1)
-        T_ee_noisy = pose_from_action(stats.unnormalize(a_noisy))
+        T_ee_noisy = space.to_pose(a_noisy)
         with torch.no_grad():
             inputs = self._network_inputs(images, T_world_ee, gripper, T_ee_noisy)
             T_world_cam = inputs["T_world_cam"]
@@ -617,8 +634,10 @@ class RnDModel(nn.Module):
             raise ValueError("The action batch contains NaN or inf.")
         images, T_world_ee, gripper = self.prepare_observation(images, state)
         b, t = action.shape[:2]
-        T_ee_target, gripper_target = self.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
-        sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target)
+        state_now = state[:, -1]
+        T_ee_target, gripper_target = self.action_adapter.to_rnd(action, T_world_ee[:, -1], state=state_now)
+        x_target = self.diffusion_space(state_now).target(action, T_ee_target)
+        sample = self.noisy_sample_targets(images, T_world_ee, gripper, T_ee_target, x_target, state_now)
         a_gt, a_noisy = sample["a_gt"], sample["a_noisy"]
         displacement, update, logits = self._run_network(
             self.network, sample, gripper, sample["k"], a_noisy, task_index
@@ -677,11 +696,13 @@ class RnDModel(nn.Module):
         return denoise_fn
 
     def denoise(
-        self, images, T_world_ee, gripper, noise: Tensor, record: list | None = None, task_index: Tensor | None = None
+        self, images, T_world_ee, gripper, noise: Tensor, record: list | None = None, task_index: Tensor | None = None,
+        state_now: Tensor | None = None,
     ):
-        """Sample a chunk from `noise` (B, T, 6) with `lerobot_rnd.sampler.sample_actions`: the past/current
-        frames are rendered and tokenised once, every step renders the current actions. Returns (a_0 normalised
-        (B, T, 6), gripper logits (B, T)); `record`, a list, receives the composite images of every pass."""
+        """Sample a chunk from `noise` (B, T, D) with `lerobot_rnd.sampler.sample_actions`: the past/current
+        frames are rendered and tokenised once, every step renders the current actions. state_now (B, S): the
+        current state (needed for "joints"). Returns (a_0 normalised (B, T, D), gripper logits (B, T)); `record`, a
+        list, receives the composite images of every pass."""
         history = self.render_history(images, T_world_ee)  # the same for every step, and so are its tokens
         with self._autocast(images.device.type):
             history["obs_tokens"] = self.network.embed_observation(history["obs_rgb"], history["obs_points"])
@@ -691,7 +712,7 @@ class RnDModel(nn.Module):
             self.inference_timesteps,
             self.inference_alpha_bar,
             self.inference_alpha_bar_prev,
-            self.action_stats,
+            self.diffusion_space(state_now),
             T_world_ee[:, -1:],
             point_update=self.config.point_update,
             final_action_step=self.config.final_action_step and self.predict_action,
@@ -701,17 +722,17 @@ class RnDModel(nn.Module):
 
     def sampler_step(
         self, images, T_world_ee, gripper, a: Tensor, i: int, full_composite: bool = False,
-        task_index: Tensor | None = None,
+        task_index: Tensor | None = None, state_now: Tensor | None = None,
     ):
         """Step i of the sampler alone (`lerobot_rnd.sampler.sampler_step`), for inspection: returns (a_next
-        (B, T, 6), gripper logits (B, T), composite images (B, F, C, 3, h, w) when `full_composite`, else None)."""
+        (B, T, D), gripper logits (B, T), composite images (B, F, C, 3, h, w) when `full_composite`, else None)."""
         a_next, logits, valid, composite = sampler_step(
             self.denoiser(images, T_world_ee, gripper, task_index=task_index),
             a,
             self.inference_timesteps[i],
             self.inference_alpha_bar[i],
             self.inference_alpha_bar_prev[i],
-            self.action_stats,
+            self.diffusion_space(state_now),
             T_world_ee[:, -1:],
             self.config.point_update,
             full_composite=full_composite,
@@ -733,7 +754,7 @@ class RnDModel(nn.Module):
                 stacklevel=3,
             )
 
-    def _denoise_compiled(self, images, T_world_ee, gripper, noise, task_index: Tensor | None = None):
+    def _denoise_compiled(self, images, T_world_ee, gripper, noise, task_index=None, state_now=None):
         """`denoise` compiled with `torch.compile` (CUDA graphs on GPU) over static-shape rendering.
 
         The static rasteriser has fixed triangle capacities; if a render overflows them (a gripper far larger
@@ -745,13 +766,15 @@ class RnDModel(nn.Module):
         self._static_render = True
         self._render_overflow = torch.zeros((), dtype=torch.bool, device=images.device)
         try:
-            a, logits = self._compiled_sampler(images, T_world_ee, gripper, noise, task_index=task_index)
+            a, logits = self._compiled_sampler(
+                images, T_world_ee, gripper, noise, task_index=task_index, state_now=state_now
+            )
             overflow = bool(self._render_overflow)
         finally:
             self._static_render = False
         if overflow:
             logger.warning("Static rendering overflowed its triangle capacity; recomputing this chunk eagerly.")
-            a, logits = self.denoise(images, T_world_ee, gripper, noise, task_index=task_index)
+            a, logits = self.denoise(images, T_world_ee, gripper, noise, task_index=task_index, state_now=state_now)
         return a.clone(), logits.clone()
 
     @torch.no_grad()
@@ -763,12 +786,15 @@ class RnDModel(nn.Module):
         self.meshes.check_loaded()
         images, T_world_ee, gripper = self.prepare_observation(images, state)
         b = images.shape[0]
+        state_now = state[:, -1]
         if noise is None:
-            noise = torch.randn(b, self.config.chunk_size, 6, device=images.device)
+            noise = torch.randn(b, self.config.chunk_size, self.action_dim, device=images.device)
         if self.config.inference_compile and images.device.type == "cuda":
-            a, logits = self._denoise_compiled(images, T_world_ee, gripper, noise, task_index)
+            a, logits = self._denoise_compiled(images, T_world_ee, gripper, noise, task_index, state_now)
         else:
-            a, logits = self.denoise(images, T_world_ee, gripper, noise, task_index=task_index)
-        T_ee_target = pose_from_action(self.action_stats.unnormalize(a))
+            a, logits = self.denoise(images, T_world_ee, gripper, noise, task_index=task_index, state_now=state_now)
         gripper_action = torch.where(logits > 0, 1.0, -1.0)
-        return self.action_adapter.from_rnd(T_ee_target, gripper_action, T_world_ee[:, -1], state=state[:, -1])
+        space = self.diffusion_space(state_now)
+        if isinstance(space, JointSpace):  # the joint targets are the action: no IK
+            return self.action_adapter.compose_action(space.to_joints(a), gripper_action)
+        return self.action_adapter.from_rnd(space.to_pose(a), gripper_action, T_world_ee[:, -1], state=state_now)

@@ -127,14 +127,14 @@ class RnDDenoiser(nn.Module):
         future_points: the future steps' point maps, same shape as `future_rgb`.
         gripper_state: (B, H) gripper state of the past/current frames, roughly in [-1, 1].
         timestep: (B,) diffusion step k.
-        noisy_action: (B, T, 6) noisy normalised action (used by the A and AI variants).
+        noisy_action: (B, T, D) noisy normalised action (used by the A and AI variants; D = `action_dim`).
         patch_index: (B, T, C, K) long, required when `gripper_patches` > 0: which patches `future_*` hold
             (`select_gripper_patches`: those the rendered gripper covers most). A future frame's other patches
             equal the current frame's, which is tokenised in full.
     Outputs:
         displacement: normalised per-pixel 3-D displacement (I and AI variants, else None), (B, T, C, 3, h, w),
             or (B, T, C, 3, K*p*p) on the selected pixels with `gripper_patches` > 0.
-        action_update: (B, T, 6) normalised action-space update (A and AI variants, else None).
+        action_update: (B, T, D) normalised action-space update (A and AI variants, else None).
         gripper_logits: (B, T).
     """
 
@@ -156,6 +156,7 @@ class RnDDenoiser(nn.Module):
         gripper_patches: int = 0,
         patch_embed: str = "linear",
         n_tasks: int = 0,
+        action_dim: int = 6,
     ):
         super().__init__()
         self.n_views = n_views
@@ -192,7 +193,7 @@ class RnDDenoiser(nn.Module):
         self.step_mlp = nn.Sequential(nn.Linear(d, d), nn.SiLU(), nn.Linear(d, d))
         self.register_token = nn.Parameter(torch.zeros(1, 1, d))
         self.future_pos_embed = nn.Parameter(torch.zeros(horizon, d))
-        self.action_embed = nn.Linear(6, d) if predict_action else None
+        self.action_embed = nn.Linear(action_dim, d) if predict_action else None
 
         self.blocks = nn.ModuleList(
             [TransformerBlock(d, n_heads, mlp_ratio, dropout) for _ in range(n_layers)]
@@ -204,7 +205,7 @@ class RnDDenoiser(nn.Module):
         self.image_head = PerViewLinear(n_views, d, 3 * patch_size * patch_size) if predict_image else None
         self.gripper_head = nn.Linear(d, 1)
         self.action_head = (
-            nn.Sequential(nn.Linear(d, d), nn.GELU(), nn.Linear(d, 6)) if predict_action else None
+            nn.Sequential(nn.Linear(d, d), nn.GELU(), nn.Linear(d, action_dim)) if predict_action else None
         )
         for p in (self.frame_embed, self.view_embed, self.register_token, self.future_pos_embed):
             nn.init.normal_(p, std=EMBEDDING_INIT_STD)

@@ -6,7 +6,8 @@ Equation numbers are the paper's (Vosylius et al., "Render and Diffuse", RSS 202
 `sample_actions` implements; the paper's Sec. IV-B (R&D-AI) the fallback to, and final pass in, action space.
 
 The model supplies one callable, `denoise_fn(a, T_ee_target, timestep, full_composite) -> DenoiserOutput`: render
-the gripper at the actions, run the network. Everything here is batched and free of host synchronisation (no
+the gripper at the actions, run the network; and the space of the diffused variable `a` (B, T, D)
+(`lerobot_rnd.diffusion_space`: `to_pose(a) -> T_ee_target`, `from_pose(T_ee_target) -> a`). Everything here is batched and free of host synchronisation (no
 `.item()`, no data-dependent shapes), so the loop can be captured by `torch.compile` / CUDA graphs.
 """
 
@@ -17,7 +18,7 @@ import torch
 from diffusers.schedulers.scheduling_ddim import DDIMScheduler
 from torch import Tensor
 
-from lerobot_rnd.geometry import action_from_pose, invert_transform, pose_from_action, rigid_transform_from_moments
+from lerobot_rnd.geometry import invert_transform, rigid_transform_from_moments
 
 #: The noise schedule (diffusers' name): squared cosine, as the authors' research code.
 BETA_SCHEDULE = "squaredcos_cap_v2"
@@ -161,7 +162,7 @@ def register_point_update(
 class DenoiserOutput:
     """One network pass on rendered actions, as the sampler needs it.
 
-    update: (B, T, 6) normalised action-space update (variants A, AI) or None.
+    update: (B, T, D) normalised action-space update (variants A, AI) or None.
     logits: (B, T) gripper logits.
     displacement: (B, T, C, 3, N) metric camera-frame displacement F of the rendered pixels (variants I, AI) or
         None; points (B, T, C, 3, N) those pixels' camera-frame points P; mask (B, T, C, N) where they are set;
@@ -178,12 +179,12 @@ class DenoiserOutput:
     composite: Tensor | None = None
 
 
-#: denoise_fn(a (B, T, 6) normalised, T_ee_target (B, T, 4, 4), timestep (B,) long, full_composite) -> output
+#: denoise_fn(a (B, T, D) normalised, T_ee_target (B, T, 4, 4), timestep (B,) long, full_composite) -> output
 DenoiseFn = Callable[[Tensor, Tensor, Tensor, bool], DenoiserOutput]
 
 
 def image_space_action(
-    a: Tensor, T_ee_target: Tensor, out: DenoiserOutput, T_world_ee_now: Tensor, action_stats,
+    a: Tensor, T_ee_target: Tensor, out: DenoiserOutput, T_world_ee_now: Tensor, space,
     alpha_bar: Tensor, alpha_bar_prev: Tensor, point_update: str,
 ) -> tuple[Tensor, Tensor]:
     """The next action from the image-space prediction (Sec. IV-D): P_0 = P_k + F, then either
@@ -194,8 +195,9 @@ def image_space_action(
     - "ddim": the paper's Eq. (7) applied to the camera-frame points (P_k -> P_{k-1}), then Eq. (8) (it rescales
       the cloud about each camera centre).
 
-    a, T_ee_target: the current actions (B, T, 6) normalised and their poses (B, T, 4, 4); T_world_ee_now
-    (B, 1, 4, 4). Returns (a_next (B, T, 6), valid (B, T) bool: enough rendered pixels were visible).
+    a, T_ee_target: the current actions (B, T, D) normalised and their poses (B, T, 4, 4); T_world_ee_now
+    (B, 1, 4, 4); space: the diffused variable's (`from_pose`). Returns (a_next (B, T, D), valid (B, T) bool: enough
+    rendered pixels were visible).
     """
     p_k = out.points.float()
     p0 = p_k + out.displacement
@@ -204,27 +206,27 @@ def image_space_action(
     # T_ee_moved = T_world_ee_now^-1 T_world_delta T_world_ee_now T_ee_target, composed in float64 for precision.
     T_now = T_world_ee_now.double()
     T_ee_moved = (invert_transform(T_now) @ T_world_delta.double() @ T_now @ T_ee_target.double()).float()
-    a_image = action_stats.normalize(action_from_pose(T_ee_moved))
+    a_image = space.from_pose(T_ee_moved)
     if point_update == "x0":
         a_image = ddim_step(a, a_image.clamp(-1, 1), alpha_bar, alpha_bar_prev)
     return a_image, valid
 
 
 def sampler_step(
-    denoise_fn: DenoiseFn, a: Tensor, timestep: int, alpha_bar: Tensor, alpha_bar_prev: Tensor, action_stats,
+    denoise_fn: DenoiseFn, a: Tensor, timestep: int, alpha_bar: Tensor, alpha_bar_prev: Tensor, space,
     T_world_ee_now: Tensor, point_update: str = "x0", full_composite: bool = False,
 ) -> tuple[Tensor, Tensor, Tensor | None, Tensor | None]:
     """One denoising step a_k -> a_{k-1} (Sec. IV-D): render the actions, predict, update.
 
-    a: (B, T, 6) normalised actions at diffusion step `timestep`; alpha_bar / alpha_bar_prev: that step's
+    a: (B, T, D) normalised actions at diffusion step `timestep` (`space`: their diffusion space); alpha_bar / alpha_bar_prev: that step's
     cumulative alphas. The clean estimate comes from the image space where enough rendered pixels are visible
     (variants I, AI; `image_space_action`), else from the action space (a + update for A and AI; the current
     action for I), followed by a DDIM step (Eq. 7 in action space).
-    Returns (a_next (B, T, 6), gripper logits (B, T), valid (B, T) bool or None without image-space predictions,
+    Returns (a_next (B, T, D), gripper logits (B, T), valid (B, T) bool or None without image-space predictions,
     the composite images when `full_composite`, else None).
     """
     a = a.clamp(-1, 1)
-    T_ee_target = pose_from_action(action_stats.unnormalize(a))
+    T_ee_target = space.to_pose(a)
     steps = torch.full((a.shape[0],), timestep, device=a.device, dtype=torch.long)
     out = denoise_fn(a, T_ee_target, steps, full_composite)
     x0_action = (a + out.update).clamp(-1, 1) if out.update is not None else a
@@ -232,7 +234,7 @@ def sampler_step(
     valid = None
     if out.displacement is not None:
         a_image, valid = image_space_action(
-            a, T_ee_target, out, T_world_ee_now, action_stats, alpha_bar, alpha_bar_prev, point_update
+            a, T_ee_target, out, T_world_ee_now, space, alpha_bar, alpha_bar_prev, point_update
         )
         a_next = torch.where(valid[..., None], a_image, a_next)
     return a_next, out.logits, valid, out.composite
@@ -240,23 +242,23 @@ def sampler_step(
 
 def sample_actions(
     denoise_fn: DenoiseFn, noise: Tensor, timesteps: list[int], alpha_bar: Tensor, alpha_bar_prev: Tensor,
-    action_stats, T_world_ee_now: Tensor, point_update: str = "x0", final_action_step: bool = True,
+    space, T_world_ee_now: Tensor, point_update: str = "x0", final_action_step: bool = True,
     on_visibility: Callable[[Tensor], None] | None = None, record: list | None = None,
 ) -> tuple[Tensor, Tensor]:
     """The R&D sampler (Sec. IV-D): from Gaussian noise in normalised action space, one `sampler_step` per
     inference timestep, then (`final_action_step`, variants A and AI) one more pass at timestep 0 whose
     action-space prediction gives the final, precise action (Sec. IV-B, R&D-AI).
 
-    noise: (B, T, 6); timesteps: the S DDIM steps k; alpha_bar, alpha_bar_prev: (S,) their cumulative alphas
+    noise: (B, T, D); space: the diffused variable's (`lerobot_rnd.diffusion_space`); timesteps: the S DDIM steps k; alpha_bar, alpha_bar_prev: (S,) their cumulative alphas
     (`inference_schedule`); T_world_ee_now: (B, 1, 4, 4) the current end-effector pose; `on_visibility(valid)`
     is called with each step's (B, T) visibility; `record`, a list, receives the composite images of every pass.
-    Returns (a_0 (B, T, 6) normalised, gripper logits (B, T)).
+    Returns (a_0 (B, T, D) normalised, gripper logits (B, T)).
     """
     a = noise
     logits = None
     for i, k in enumerate(timesteps):
         a, logits, valid, composite = sampler_step(
-            denoise_fn, a, k, alpha_bar[i], alpha_bar_prev[i], action_stats, T_world_ee_now, point_update,
+            denoise_fn, a, k, alpha_bar[i], alpha_bar_prev[i], space, T_world_ee_now, point_update,
             full_composite=record is not None,
         )
         if valid is not None and on_visibility is not None:
@@ -265,7 +267,7 @@ def sample_actions(
             record.append(composite)
     a = a.clamp(-1, 1)
     if final_action_step:
-        T_ee_target = pose_from_action(action_stats.unnormalize(a))
+        T_ee_target = space.to_pose(a)
         out = denoise_fn(a, T_ee_target, torch.zeros((a.shape[0],), device=a.device, dtype=torch.long),
                          record is not None)  # fmt: skip
         if record is not None:

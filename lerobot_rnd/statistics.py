@@ -1,8 +1,8 @@
 """Normalisation statistics of R&D's targets, estimated from a LeRobot dataset on disk.
 
 R&D normalises its targets to [-1, 1] by min/max (the paper's appendix: without it nothing is learnt):
-the 6-D action chunk (translation + rotation vector of `T_ee_target`, jointly over the horizon)
-and the per-pixel image-space displacement (per camera and axis).
+the diffused action chunk (jointly over the horizon: the 6-D translation + rotation vector of `T_ee_target`, or
+the joint targets with `diffusion_space="joints"`) and the per-pixel image-space displacement (per camera and axis).
 """
 
 import logging
@@ -15,8 +15,6 @@ from torch import Tensor, nn
 from tqdm.auto import tqdm
 
 from lerobot.utils.constants import ACTION, OBS_STATE
-
-from lerobot_rnd.geometry import action_from_pose
 
 logger = logging.getLogger(__name__)
 
@@ -140,6 +138,7 @@ def estimate_rnd_statistics(
     ee_pose: Callable[[Tensor], Tensor],
     gripper_state: Callable[[Tensor], Tensor],
     to_rnd: Callable[..., tuple[Tensor, Tensor]],
+    diffusion_target: Callable[[Tensor, Tensor, Tensor], Tensor],
     noisy_sample_targets: Callable[..., dict],
     device: torch.device | str = "cpu",
     batch_size: int = 16,
@@ -149,8 +148,10 @@ def estimate_rnd_statistics(
 
     The model's pieces come in as functions: `ee_pose(state (S, H, D)) -> T_world_ee (S, H, 4, 4)`,
     `gripper_state(state) -> (S, H)`, `to_rnd(action (S, T, A), T_world_ee_now (S, 4, 4), state=...) ->
-    (T_ee_target (S, T, 4, 4), gripper (S, T))` (the action adapter), and `noisy_sample_targets(images, T_world_ee,
-    gripper, T_ee_target, generator=..., action_stats=...)` (`RnDModel.noisy_sample_targets`).
+    (T_ee_target (S, T, 4, 4), gripper (S, T))` (the action adapter), `diffusion_target(action, T_ee_target,
+    state_now (S, D)) -> (S, T, D')` (the unnormalised diffused variable), and `noisy_sample_targets(images,
+    T_world_ee, gripper, T_ee_target, x_target, state_now, generator=..., action_stats=...)`
+    (`RnDModel.noisy_sample_targets`).
 
     - Action min/max over EVERY training window of the dataset (streamed, padded steps excluded), widened by
       `STATS_MARGIN`, so no training target falls outside [-1, 1].
@@ -158,7 +159,7 @@ def estimate_rnd_statistics(
     - Displacement min/max per camera and axis from `num_samples` random windows, produced exactly as
       training produces its targets (noised in the action normalisation just estimated), widened by the same margin.
 
-    Returns {"action_min", "action_max"} (6,), {"displacement_min", "displacement_max"} (C, 3, 1, 1) and
+    Returns {"action_min", "action_max"} (D',), {"displacement_min", "displacement_max"} (C, 3, 1, 1) and
     "gripper_pos_weight" (a scalar tensor).
     """
     episodes = load_episode_arrays(dataset_root)
@@ -166,20 +167,22 @@ def estimate_rnd_statistics(
         raise ValueError(f"The dataset at {dataset_root} has no frames: record or select some episodes.")
     _check_finite_rows(episodes)
     big = torch.finfo(torch.float32).max
-    a_min = torch.full((6,), big, device=device)
-    a_max = torch.full((6,), -big, device=device)
+    a_min = a_max = None
     n_closed = n_open = 0
     for state, action, is_pad in iter_all_windows(episodes, n_obs_steps, chunk_size):
         state, action, valid = state.to(device), action.to(device), (~is_pad).to(device)
         T_world_ee = ee_pose(state)
         T_ee_target, grip = to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
-        a = action_from_pose(T_ee_target).float()  # (S, T, 6)
+        a = diffusion_target(action, T_ee_target, state[:, -1]).float()  # (S, T, D')
+        if a_min is None:
+            a_min = torch.full(a.shape[-1:], big, device=device)
+            a_max = torch.full(a.shape[-1:], -big, device=device)
         a_min = torch.minimum(a_min, torch.where(valid[..., None], a, big).amin((0, 1)))
         a_max = torch.maximum(a_max, torch.where(valid[..., None], a, -big).amax((0, 1)))
         n_closed += int(((grip > 0) & valid).sum())
         n_open += int(((grip <= 0) & valid).sum())
     a_min, a_max = widen(a_min, a_max)
-    action_stats = MinMaxStats((6,)).to(device)
+    action_stats = MinMaxStats(tuple(a_min.shape)).to(device)
     action_stats.set(a_min, a_max)
     pos_weight = 1.0 if n_closed == 0 or n_open == 0 else min(10.0, max(0.1, n_open / n_closed))
 
@@ -195,9 +198,11 @@ def estimate_rnd_statistics(
         b = st.shape[0]
         T_world_ee = ee_pose(st)
         T_ee_target, _ = to_rnd(ac, T_world_ee[:, -1], state=st[:, -1])
+        x_target = diffusion_target(ac, T_ee_target, st[:, -1])
         blank = torch.zeros(b, n_obs_steps, n_cameras, 3, h, w, device=device)
         sample = noisy_sample_targets(
-            blank, T_world_ee, gripper_state(st), T_ee_target, generator=generator, action_stats=action_stats
+            blank, T_world_ee, gripper_state(st), T_ee_target, x_target, st[:, -1], generator=generator,
+            action_stats=action_stats,
         )
         disp = sample["displacement"]  # (b, T, C, 3, N)
         m = (sample["target_mask"] & valid[:, :, None, None]).unsqueeze(3)  # (b, T, C, 1, N)

@@ -134,3 +134,74 @@ def record_toy_dataset(root: Path, n_episodes: int = 3, episode_len: int = 16, s
     ds.finalize()
     embodiment.save_json(Path(root) / EMBODIMENT_FILE_IN_DATASET)
     return Path(root)
+
+
+def toy_so101_embodiment(image_size=IMAGE_SIZE) -> Embodiment:
+    """The SO-101 embodiment (joint-space state and actions, FK pose source, joint_positions adapter) seen by a
+    camera above the arm and one on its gripper (synthetic intrinsics and poses)."""
+    from lerobot_rnd import so101
+
+    h, w = image_size
+    f = 0.9 * w
+    K = [[f, 0, (w - 1) / 2], [0, f, (h - 1) / 2], [0, 0, 1]]
+    T_ee_cam = np.eye(4)
+    T_ee_cam[:3, 3] = (0.03, 0.0, -0.08)
+    cameras = {
+        "observation.images.front": CameraCalibration(
+            "front", K, image_size, T_world_cam=look_at((0.55, 0.0, 0.45), (0.2, 0.0, 0.05))
+        ),
+        "observation.images.wrist": CameraCalibration("wrist", K, image_size, T_ee_cam=T_ee_cam),
+    }
+    return so101.so101_embodiment(cameras, camera_mesh={"observation.images.wrist": "fingers"}, name="toy_so101")
+
+
+def record_toy_so101_dataset(root: Path, n_episodes: int = 3, episode_len: int = 16, seed: int = 0,
+                             repo_id: str = "local/toy_so101"):
+    """Write a LeRobot v3 dataset of an SO-101 moving its joints (LeRobot units: degrees, gripper 0-100) from a
+    random start towards a random goal, 4 degrees per step at most, with its embodiment JSON; returns its root.
+    The images show the goal's gripper position as a red blob (NumPy projection of its FK)."""
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    from lerobot_rnd import so101
+
+    embodiment = toy_so101_embodiment()
+    h, w = IMAGE_SIZE
+    names = list(so101.JOINT_NAMES)
+    features = {
+        **{
+            key: {"dtype": "image", "shape": (h, w, 3), "names": ["height", "width", "channels"]}
+            for key in embodiment.cameras
+        },
+        "observation.state": {"dtype": "float32", "shape": (6,), "names": names},
+        "action": {"dtype": "float32", "shape": (6,), "names": names},
+    }
+    ds = LeRobotDataset.create(repo_id, fps=FPS, features=features, root=root, use_videos=False)
+    rng = np.random.default_rng(seed)
+    centre = np.array([0.0, -20.0, 20.0, 60.0, 0.0])  # degrees: the gripper above the table in front of the base
+    for _ in range(n_episodes):
+        q = centre + rng.uniform(-10, 10, 5)
+        goal = centre + rng.uniform(-25, 25, 5)
+        T_goal = so101.forward_kinematics(np.append(goal, 50.0)).numpy()
+        for t in range(episode_len):
+            step = np.clip(goal - q, -4.0, 4.0)
+            grip = 10.0 if t >= episode_len // 2 else 90.0  # closes half-way
+            T_world_ee = so101.forward_kinematics(np.append(q, 90.0)).numpy()
+            frame = {}
+            for key, cam in embodiment.cameras.items():
+                T_world_cam = cam.T_world_cam if cam.is_static else T_world_ee @ cam.T_ee_cam
+                img = np.full((h, w, 3), (90, 110, 90), dtype=np.uint8)
+                p_cam = np.linalg.inv(T_world_cam) @ np.append(T_goal[:3, 3], 1.0)
+                if p_cam[2] > 1e-3:
+                    u, v = (cam.K @ (p_cam[:3] / p_cam[2]))[:2]
+                    vv, uu = np.mgrid[0:h, 0:w]
+                    img[(uu - u) ** 2 + (vv - v) ** 2 <= 9.0] = (220, 30, 30)
+                frame[key] = img
+            frame["observation.state"] = np.append(q, 90.0 if t <= episode_len // 2 else 10.0).astype(np.float32)
+            frame["action"] = np.append(q + step, grip).astype(np.float32)
+            frame["task"] = "move to the goal"
+            ds.add_frame(frame)
+            q = q + step
+        ds.save_episode()
+    ds.finalize()
+    embodiment.save_json(Path(root) / EMBODIMENT_FILE_IN_DATASET)
+    return Path(root)

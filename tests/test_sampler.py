@@ -351,6 +351,7 @@ def test_denoise_embeds_the_observation_once_per_chunk_and_matches_the_uncached_
 def test_sample_actions_calls_the_denoiser_once_per_step_then_once_for_the_final_action():
     """`sampler.sample_actions` on its own, with a stand-in denoiser (no model): it hears the DDIM timesteps then 0,
     sees the actions it is given rendered at their poses, and ends on the final pass's action-space estimate."""
+    from lerobot_rnd.diffusion_space import EEPoseSpace
     from lerobot_rnd.geometry import pose_from_action
     from lerobot_rnd.sampler import DenoiserOutput, inference_schedule, make_noise_scheduler, sample_actions
     from lerobot_rnd.statistics import MinMaxStats
@@ -367,13 +368,13 @@ def test_sample_actions_calls_the_denoiser_once_per_step_then_once_for_the_final
         return DenoiserOutput(update=target - a, logits=torch.full(a.shape[:2], float(len(calls))))
 
     noise = torch.randn(2, 3, 6, generator=torch.Generator().manual_seed(0))
-    a, logits = sample_actions(denoise_fn, noise, timesteps, alpha_bar, alpha_bar_prev, stats,
+    a, logits = sample_actions(denoise_fn, noise, timesteps, alpha_bar, alpha_bar_prev, EEPoseSpace(stats),
                                torch.eye(4).expand(2, 1, 4, 4))  # fmt: skip
     assert calls == [[k, k] for k in timesteps] + [[0, 0]]
     torch.testing.assert_close(a, target)
     assert torch.equal(logits, torch.full((2, 3), 5.0))  # the final pass's logits
     calls.clear()
-    a, _ = sample_actions(denoise_fn, noise, timesteps, alpha_bar, alpha_bar_prev, stats,
+    a, _ = sample_actions(denoise_fn, noise, timesteps, alpha_bar, alpha_bar_prev, EEPoseSpace(stats),
                           torch.eye(4).expand(2, 1, 4, 4), final_action_step=False)  # fmt: skip
     assert len(calls) == 4
     torch.testing.assert_close(a, target)  # the last DDIM step goes to alpha_prev = 1: the clean estimate
