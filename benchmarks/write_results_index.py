@@ -127,6 +127,17 @@ STATUS: dict[str, tuple[str, str]] = {
                                            "0.14, y -0.05, z -0.13; median miss 18 cm), no longer ending on the "
                                            "table (median final height 9 cm): the SO-101 config keeps 32-px "
                                            "patches, the test seeds were not run."),
+    "trace_so101_reach_rnd_ai_joints.json": (CURRENT, ("A validation run: R&D-AI reach-target (10 demos) denoising "
+                                              "the joint targets (run_benchmark.py --suite so101 --scale cpu --tasks "
+                                              "reach-target --demos 10 --methods rnd_ai --steps 3000 --train-only "
+                                              "--train-arg rnd_ai:--policy.diffusion_space=joints --out "
+                                              "outputs/diag/so101_joints --work-dir outputs/diag/so101_joints_work; "
+                                              "the JSON's command names the outputs/diag path it was written to), "
+                                              "closed loop on validation seeds 100-119: 2/20 (gripper poses: 1/20), "
+                                              "still blind to the goal (slopes x -0.14, y 0.02, z -0.24; median "
+                                              "miss 12 cm against 16), no longer ending on the table (median final "
+                                              "height 8 cm): the SO-101 config keeps diffusing gripper poses, the "
+                                              "test seeds were not run.")),
     "trace_so101_reach_rnd_ai_ikw0.1.json": (CURRENT, "The so101_random R&D-AI reach-target checkpoint (10 demos) "
                                               "with IK orientation weight 0.1 instead of 1 (set at inference only), "
                                               "closed loop on validation seeds 100-119: 0/20, slopes about 0, ending "
