@@ -38,19 +38,24 @@ def check_diffusion_space(diffusion_space: str, adapter: ActionAdapter) -> None:
         )
 
 
-class EEPoseSpace:
-    """a (B, T, 6) = normalised [translation (m), rotation vector (rad)] of T_ee_target (the paper's action)."""
+class DiffusionSpace:
+    """What both spaces share: the min/max normalisation `stats` (a `MinMaxStats` of shape (D,))."""
 
     def __init__(self, stats):
         self.stats = stats
+
+    def normalize(self, x: Tensor) -> Tensor:
+        """The unnormalised variable (B, T, D) -> a."""
+        return self.stats.normalize(x)
+
+
+class EEPoseSpace(DiffusionSpace):
+    """a (B, T, 6) = normalised [translation (m), rotation vector (rad)] of T_ee_target (the paper's action)."""
 
     @staticmethod
     def target(action: Tensor, T_ee_target: Tensor) -> Tensor:
         """The unnormalised variable (B, T, 6) of a ground-truth chunk (its poses T_ee_target (B, T, 4, 4))."""
         return action_from_pose(T_ee_target)
-
-    def normalize(self, x: Tensor) -> Tensor:
-        return self.stats.normalize(x)
 
     def to_pose(self, a: Tensor) -> Tensor:
         """a (B, T, 6) normalised -> T_ee_target (B, T, 4, 4)."""
@@ -60,8 +65,13 @@ class EEPoseSpace:
         """T_ee_target (B, T, 4, 4) -> a (B, T, 6) normalised (not clamped)."""
         return self.stats.normalize(action_from_pose(T_ee_target))
 
+    def dataset_action(self, a: Tensor, gripper: Tensor, adapter: ActionAdapter, T_world_ee_now: Tensor,
+                       state_now: Tensor) -> Tensor:
+        """a (B, T, 6), R&D gripper (B, T) -> the dataset's action chunk (B, T, A), through the action adapter."""
+        return adapter.from_rnd(self.to_pose(a), gripper, T_world_ee_now, state=state_now)
 
-class JointSpace:
+
+class JointSpace(DiffusionSpace):
     """a (B, T, n) = normalised joint targets q in the dataset's units (absolute, as the dataset's action).
 
     adapter: the `JointPositionAdapter` (URDF chain, unit scale, IK); state_now (B, S): the current robot state,
@@ -69,7 +79,7 @@ class JointSpace:
     """
 
     def __init__(self, stats, adapter: JointPositionAdapter, state_now: Tensor):
-        self.stats = stats
+        super().__init__(stats)
         self.adapter = adapter
         self.q_now = adapter.joints_from_state(state_now.float())  # (B, n), dataset units
         self.T_base_ee_now = adapter.forward_kinematics(adapter.to_urdf_units(self.q_now))  # (B, 4, 4)
@@ -77,9 +87,6 @@ class JointSpace:
     def target(self, action: Tensor, T_ee_target: Tensor) -> Tensor:
         """The unnormalised variable (B, T, n) of a ground-truth chunk: the dataset action's joint columns."""
         return action[..., : self.adapter.n_joints].float()
-
-    def normalize(self, x: Tensor) -> Tensor:
-        return self.stats.normalize(x)
 
     def to_joints(self, a: Tensor) -> Tensor:
         """a (B, T, n) normalised -> joint targets (B, T, n) in the dataset's units."""
@@ -96,3 +103,9 @@ class JointSpace:
         q_now = self.adapter.to_urdf_units(self.q_now).to(T_ee_target)
         q, _ = self.adapter.inverse_kinematics(T_base_target, q_now[:, None])
         return self.stats.normalize(self.adapter.from_urdf_units(q).to(T_ee_target.dtype))
+
+    def dataset_action(self, a: Tensor, gripper: Tensor, adapter: ActionAdapter, T_world_ee_now: Tensor,
+                       state_now: Tensor) -> Tensor:
+        """a (B, T, n), R&D gripper (B, T) -> the dataset's action chunk (B, T, A): the joint targets are the action
+        as they are (no IK)."""
+        return adapter.compose_action(self.to_joints(a), gripper)

@@ -794,7 +794,6 @@ class RnDModel(nn.Module):
         else:
             a, logits = self.denoise(images, T_world_ee, gripper, noise, task_index=task_index, state_now=state_now)
         gripper_action = torch.where(logits > 0, 1.0, -1.0)
-        space = self.diffusion_space(state_now)
-        if isinstance(space, JointSpace):  # the joint targets are the action: no IK
-            return self.action_adapter.compose_action(space.to_joints(a), gripper_action)
-        return self.action_adapter.from_rnd(space.to_pose(a), gripper_action, T_world_ee[:, -1], state=state_now)
+        return self.diffusion_space(state_now).dataset_action(
+            a, gripper_action, self.action_adapter, T_world_ee[:, -1], state_now
+        )

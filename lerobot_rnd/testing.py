@@ -69,18 +69,19 @@ def toy_embodiment(image_size=IMAGE_SIZE) -> Embodiment:
     )
 
 
-def _draw(embodiment: Embodiment, ee_pos: np.ndarray, target: np.ndarray) -> dict[str, np.ndarray]:
-    """uint8 images (H, W, 3) per camera key: table colour, target blob, gripper centre blob."""
-    T_world_ee = np.eye(4)
-    T_world_ee[:3, :3] = R_WORLD_EE
-    T_world_ee[:3, 3] = ee_pos
+RED, BLUE = (220, 30, 30), (30, 30, 220)
+
+
+def _draw(embodiment: Embodiment, T_world_ee: np.ndarray, blobs) -> dict[str, np.ndarray]:
+    """uint8 images (H, W, 3) per camera key: table colour and `blobs`, (world point (3,), colour, radius px) each,
+    projected by NumPy; T_world_ee (4, 4) places the cameras mounted on the end effector."""
     out = {}
     for key, cam in embodiment.cameras.items():
         h, w = cam.image_size
         T_world_cam = cam.T_world_cam if cam.is_static else T_world_ee @ cam.T_ee_cam
         img = np.full((h, w, 3), (90, 110, 90), dtype=np.uint8)
         vv, uu = np.mgrid[0:h, 0:w]
-        for point, colour, radius in ((target, (220, 30, 30), 3.0), (ee_pos, (30, 30, 220), 2.0)):
+        for point, colour, radius in blobs:
             p_cam = np.linalg.inv(T_world_cam) @ np.append(point, 1.0)
             if p_cam[2] <= 1e-3:
                 continue
@@ -123,7 +124,10 @@ def record_toy_dataset(root: Path, n_episodes: int = 3, episode_len: int = 16, s
             for t in range(episode_len):
                 delta = direction * np.clip((target - ee) / 0.01, -1, 1) * 0.8
                 grip = 1.0 if t >= episode_len // 2 else -1.0
-                images = _draw(embodiment, ee, target)
+                T_world_ee = np.eye(4)
+                T_world_ee[:3, :3] = R_WORLD_EE
+                T_world_ee[:3, 3] = ee
+                images = _draw(embodiment, T_world_ee, [(target, RED, 3.0), (ee, BLUE, 2.0)])
                 frame = {key: img for key, img in images.items()}
                 frame["observation.state"] = np.append(ee, -grip).astype(np.float32)
                 frame["action"] = np.append(delta, grip).astype(np.float32)
@@ -186,16 +190,7 @@ def record_toy_so101_dataset(root: Path, n_episodes: int = 3, episode_len: int =
             step = np.clip(goal - q, -4.0, 4.0)
             grip = 10.0 if t >= episode_len // 2 else 90.0  # closes half-way
             T_world_ee = so101.forward_kinematics(np.append(q, 90.0)).numpy()
-            frame = {}
-            for key, cam in embodiment.cameras.items():
-                T_world_cam = cam.T_world_cam if cam.is_static else T_world_ee @ cam.T_ee_cam
-                img = np.full((h, w, 3), (90, 110, 90), dtype=np.uint8)
-                p_cam = np.linalg.inv(T_world_cam) @ np.append(T_goal[:3, 3], 1.0)
-                if p_cam[2] > 1e-3:
-                    u, v = (cam.K @ (p_cam[:3] / p_cam[2]))[:2]
-                    vv, uu = np.mgrid[0:h, 0:w]
-                    img[(uu - u) ** 2 + (vv - v) ** 2 <= 9.0] = (220, 30, 30)
-                frame[key] = img
+            frame = _draw(embodiment, T_world_ee, [(T_goal[:3, 3], RED, 3.0)])
             frame["observation.state"] = np.append(q, 90.0 if t <= episode_len // 2 else 10.0).astype(np.float32)
             frame["action"] = np.append(q + step, grip).astype(np.float32)
             frame["task"] = "move to the goal"
