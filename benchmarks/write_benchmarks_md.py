@@ -649,6 +649,29 @@ PANDA_SPATIAL_TASKS = ("lift-cube", "slide-block", "push-block")
 PANDA_SPATIAL_DEMOS = (2, 4, 8, 16)
 
 
+def few_demo_gap(folder: str, columns: list[tuple[str, int]], max_demos: int = 8) -> list[str]:
+    """Issue 33's done condition, one line per baseline of TABLE_METHODS: R&D-AI's and the baseline's successes
+    summed over the (task, demos) cells of `columns` with at most `max_demos` demos that both have finished, and
+    the difference of the two rates in points. [] when no baseline shares such a cell with R&D-AI."""
+    lines = []
+    for method, name in TABLE_METHODS.items():
+        if method == "rnd_ai":
+            continue
+        shared = [(t, n) for t, n in columns if n <= max_demos]
+        pairs = [(run_file_cells(folder, "rnd_ai", (t,), demos=n).get(t), run_file_cells(folder, method, (t,),
+                  demos=n).get(t), f"{t} {n}") for t, n in shared]  # fmt: skip
+        pairs = [p for p in pairs if p[0] and p[1]]
+        if not pairs:
+            continue
+        (k_r, n_r), (k_b, n_b) = ([sum(p[i][j] for p in pairs) for j in (0, 1)] for i in (0, 1))
+        gap = 100 * (k_r / n_r - k_b / n_b)
+        cells = f"{len(pairs)} cell{'s' * (len(pairs) != 1)}"
+        lines.append(f"- Against {name}, over the {cells} with {max_demos} demos or fewer that both have "
+                     f"finished ({', '.join(p[2] for p in pairs)}): R&D-AI {cell(k_r, n_r)}, {name} "
+                     f"{cell(k_b, n_b)}, a difference of {gap:+.0f} points (the issue asks for +15).")  # fmt: skip
+    return lines
+
+
 def panda_spatial_section() -> list[str]:
     """The Panda spatial-protocol table (issue 33): one row per method, one column per task and number of
     furthest-point demos that some method has finished, from the run JSON of PANDA_SPATIAL_FOLDER; then the
@@ -684,6 +707,8 @@ def panda_spatial_section() -> list[str]:
         "most test cells did not).",
         "",
         *table,
+        *(["", "R&D-AI against each baseline over the cells with few demos (issue 33's done condition):", "",
+            *gap] if (gap := few_demo_gap(PANDA_SPATIAL_FOLDER, columns)) else []),
     ]
 
 

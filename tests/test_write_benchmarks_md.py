@@ -211,3 +211,36 @@ def test_panda_spatial_section_shows_only_finished_cells_and_the_heat_maps_that_
     assert "| ACT | not run yet |" in text and "heat maps" not in text
     (tmp_path / w.PANDA_SPATIAL_FOLDER / "heatmap_lift-cube.png").write_bytes(b"png")
     assert "heatmap_lift-cube.png" in "\n".join(w.panda_spatial_section())
+
+
+def test_few_demo_gap_sums_only_cells_both_methods_finished_with_at_most_8_demos(tmp_path, monkeypatch):
+    import json
+
+    import benchmarks.write_benchmarks_md as w
+
+    monkeypatch.setattr(w, "RESULTS", tmp_path)
+    runs = tmp_path / w.PANDA_SPATIAL_FOLDER / "runs"
+    runs.mkdir(parents=True)
+
+    def run(name, k, n=27, status="done"):
+        chunk = {"0:27": {"successes": [True] * k + [False] * (n - k)}}
+        (runs / f"{name}__seed0.json").write_text(json.dumps({"status": status, "eval_chunks": chunk}))
+
+    columns = [("lift-cube", 2), ("lift-cube", 8), ("lift-cube", 16), ("push-block", 8)]
+    assert w.few_demo_gap(w.PANDA_SPATIAL_FOLDER, columns) == []  # nothing shared: no line
+    run("rnd_ai__lift-cube__n2", 3)
+    run("act__lift-cube__n2", 0)
+    run("rnd_ai__lift-cube__n8", 21)
+    run("act__lift-cube__n8", 4)
+    run("rnd_ai__lift-cube__n16", 13)  # 16 demos: outside the condition
+    run("act__lift-cube__n16", 27)
+    run("rnd_ai__push-block__n8", 0)  # ACT's push-block run unfinished: the cell is not shared
+    run("act__push-block__n8", 27, status="training")
+    run("diffusion__lift-cube__n8", 9)
+    lines = w.few_demo_gap(w.PANDA_SPATIAL_FOLDER, columns)
+    # By hand: R&D-AI (3 + 21)/54 = 44.4%, ACT (0 + 4)/54 = 7.4%: +37 points; against DP only lift-cube 8:
+    # 21/27 = 77.8% against 9/27 = 33.3%: +44 points.
+    assert len(lines) == 2
+    assert "ACT, over the 2 cells" in lines[0] and "(lift-cube 2, lift-cube 8)" in lines[0]
+    assert "R&D-AI 24/54" in lines[0] and "ACT 4/54" in lines[0] and "+37 points" in lines[0]
+    assert "Diffusion Policy, over the 1 cell with" in lines[1] and "9/27" in lines[1] and "+44 points" in lines[1]
