@@ -51,6 +51,37 @@ def response_stats(pred: np.ndarray, demo: np.ndarray) -> dict:
             "demo_displacement_std": demo.std(0).tolist()}  # fmt: skip
 
 
+def frame_batch(frame: dict, draws: int, past: list[dict] | None = None) -> dict:
+    """One dataset frame's observations as a batch of `draws` copies, (draws, ...) per key; with `past` (the
+    frames oldest first, `frame` last), each key stacked over them: (draws, H, ...)."""
+    batch = {}
+    for key, value in frame.items():
+        if key.startswith("observation."):
+            x = torch.stack([f[key] for f in past]) if past else value
+            batch[key] = x[None].expand(draws, *x.shape).clone()
+    batch["task"] = [frame["task"]] * draws
+    return batch
+
+
+def predict_chunk(policy, pre, past: list[dict], draws: int) -> torch.Tensor:
+    """`draws` normalised action chunks (draws, T, A) for the dataset frames `past` (oldest first, as many as the
+    policy's history). Diffusion Policy reads its history from the observation queue its `select_action` fills (and
+    returns only the executed part of its horizon), so its frames go through that queue one by one, as in a
+    rollout; R&D and ACT take them stacked in the batch (R&D) or the current one alone (ACT)."""
+    if policy.config.type != "diffusion":
+        return policy.predict_action_chunk(pre(frame_batch(past[-1], draws, past if len(past) > 1 else None)))
+    from lerobot.policies.utils import populate_queues
+    from lerobot.utils.constants import OBS_IMAGES
+
+    policy.reset()
+    for frame in past:
+        batch = {k: v for k, v in pre(frame_batch(frame, draws)).items() if k != "action"}  # as select_action
+        if policy.config.image_features:
+            batch[OBS_IMAGES] = torch.stack([batch[k] for k in policy.config.image_features], dim=-4)
+        policy._queues = populate_queues(policy._queues, batch)
+    return policy.predict_action_chunk(batch)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--policy-path", required=True, help="a pretrained_model folder")
@@ -105,15 +136,8 @@ def main(argv: list[str] | None = None) -> int:
             lags = [0] * history if a.still_history else list(range(history - 1, -1, -1))
             past = [ds[start + max(t0 - h, 0)] for h in lags]  # oldest first
             now = past[-1]
-            batch = {}
-            for key, value in now.items():
-                if not key.startswith("observation."):
-                    continue
-                x = torch.stack([f[key] for f in past]) if history > 1 else value
-                batch[key] = x[None].expand(a.draws, *x.shape).clone()
-            batch["task"] = [now["task"]] * a.draws
             with torch.no_grad():
-                chunk = policy.predict_action_chunk(pre(batch))  # (draws, T, A), normalised
+                chunk = predict_chunk(policy, pre, past, a.draws)  # (draws, T, A), normalised
             if a.delta_actions:
                 executed = chunk[:, : k_end + 1]  # (draws, K, A)
                 steps = post(executed.reshape(-1, executed.shape[-1])).float().cpu().numpy()

@@ -166,7 +166,8 @@ STATUS: dict[str, tuple[str, str]] = {
                       "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27, ACT 0/27; slide-block (the target 10 cm along the block's +y axis, RLBench's "
                       "slide-block-to-target) with 8 demos R&D-AI 1/27, ACT 1/27, with 16 demos R&D-AI 0/27; "
                       "on their own 8 "
-                      "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8. The R&D-AI run is "
+                      "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8, Diffusion Policy "
+                      "0/8; Diffusion Policy with 8 lift-cube demos 0/27. The R&D-AI run is "
                       "the 16-px diagnostic run (outputs/diag/p16_work, its run JSON has the command), evaluated on "
                       "the grid only after the patch size was chosen on validation seeds.")),
     "trace_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("Where the panda_spatial R&D-AI lift-cube gripper goes (8 demos, "
@@ -187,6 +188,13 @@ STATUS: dict[str, tuple[str, str]] = {
     "train_placements_panda_lift_rnd_ai_n8_p16.json": (CURRENT, ("The same run (step 3,000) on its own 8 demo "
                                                         "placements, measured before the patch size was chosen: 5/8, "
                                                         "against 1/8 with 32-px patches and 7/8 for ACT.")),
+    "chunk_goal_response_panda_lift_diffusion_n8.json": (CURRENT, ("The panda_spatial Diffusion Policy checkpoint "
+                                                         "(8 lift-cube demos) on its own demos: its executed chunk "
+                                                         "follows them by half (slopes x 0.53, y 0.50 at frame 0; "
+                                                         "0.56, 0.70 at frame 16): it underfits them.")),
+    "trace_panda_lift_diffusion_n8.json": (CURRENT, ("The same Diffusion Policy checkpoint closed loop on validation "
+                                         "seeds 100-109: 0/10; its gripper heads for the cube (slopes x 0.84, y 0.71 "
+                                         "at step 30) but comes no closer than 3.3 cm and ends 8-21 cm away.")),
     "chunk_goal_response_panda_lift_act_n8.json": (CURRENT, ("The panda_spatial ACT checkpoint on its own demos: slopes "
                                                    "1.05-1.07 at frames 0, 8 and 16 (ACT sees one frame, no history).")),
     "trace_panda_push_random_target_rnd_ai_n8.json": (CURRENT, ("The panda_spatial R&D-AI push-block checkpoint (8 "

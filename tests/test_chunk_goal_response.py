@@ -102,3 +102,38 @@ def test_delta_actions_compare_summed_steps(toy_dataset_root, tmp_path):
                      for _, g in frames.groupby("episode_index")])  # fmt: skip
     assert result["delta_actions"] is True
     assert result["rows"][0]["demo_displacement_std"] == pytest.approx(sums.std(0).tolist(), abs=1e-5)
+
+
+def test_diffusion_policy_chunk_is_the_one_its_own_select_action_plans(toy_dataset_root, tmp_path):
+    """Diffusion Policy keeps its history in a queue that `select_action` fills: the script's chunk for frames
+    (t-1, t) must be the chunk LeRobot's own rollout path plans at t after seeing t-1, with the same noise."""
+    from lerobot.configs.types import FeatureType
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+    from lerobot.datasets.utils import dataset_to_policy_features
+    from lerobot.policies.diffusion.configuration_diffusion import DiffusionConfig
+    from lerobot.policies.diffusion.modeling_diffusion import DiffusionPolicy
+    from lerobot.policies.factory import make_pre_post_processors
+    from lerobot.utils.constants import ACTION
+
+    ds = LeRobotDataset("local/toy_reach", root=toy_dataset_root)
+    features = dataset_to_policy_features(ds.meta.features)
+    cfg = DiffusionConfig(n_obs_steps=2, horizon=8, n_action_steps=4, down_dims=(16, 32), diffusion_step_embed_dim=16,
+                          num_inference_steps=2, crop_shape=None, pretrained_backbone_weights=None, device="cpu")
+    cfg.output_features = {k: f for k, f in features.items() if f.type is FeatureType.ACTION}
+    cfg.input_features = {k: f for k, f in features.items() if k not in cfg.output_features}
+    policy = DiffusionPolicy(cfg).eval()
+    pre, _ = make_pre_post_processors(cfg, dataset_stats=ds.meta.stats)
+    past = [ds[2], ds[3]]
+
+    torch.manual_seed(5)
+    chunk = cgr.predict_chunk(policy, pre, past, draws=2)
+
+    policy.reset()
+    with torch.no_grad():
+        policy.select_action(pre(cgr.frame_batch(past[0], 2)))  # sees t-1 (and plans from a repeated t-1)
+        policy._queues[ACTION].clear()  # so that the next call plans at t
+        torch.manual_seed(5)
+        first = policy.select_action(pre(cgr.frame_batch(past[1], 2)))
+    reference = torch.stack([first, *policy._queues[ACTION]], dim=1)  # (draws, n_action_steps, A)
+    assert chunk.shape == reference.shape == (2, 4, ds.meta.features["action"]["shape"][0])
+    torch.testing.assert_close(chunk, reference)
