@@ -654,12 +654,12 @@ def few_demo_gap(folder: str, columns: list[tuple[str, int]], max_demos: int = 8
     summed over the (task, demos) cells of `columns` with at most `max_demos` demos that both have finished, and
     the difference of the two rates in points. [] when no baseline shares such a cell with R&D-AI."""
     lines = []
+    few = [(t, n) for t, n in columns if n <= max_demos]
     for method, name in TABLE_METHODS.items():
         if method == "rnd_ai":
             continue
-        shared = [(t, n) for t, n in columns if n <= max_demos]
         pairs = [(run_file_cells(folder, "rnd_ai", (t,), demos=n).get(t), run_file_cells(folder, method, (t,),
-                  demos=n).get(t), f"{t} {n}") for t, n in shared]  # fmt: skip
+                  demos=n).get(t), f"{t} {n}") for t, n in few]  # fmt: skip
         pairs = [p for p in pairs if p[0] and p[1]]
         if not pairs:
             continue
