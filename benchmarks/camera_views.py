@@ -34,6 +34,7 @@ os.environ.setdefault("MUJOCO_GL", "egl")
 #: the body of each task's object: its first box geom (a ball for SO-101 reach-target) is what is measured
 OBJECT_BODY = {
     "lift-cube": "cube", "pick-place": "cube", "push-block": "block", "slide-block": "block", "press-button": "button_box",  # Panda
+    "lift-red-cube": "red_cube", "lift-blue-cube": "blue_cube",  # Panda, two cubes: the one to lift
     "pick-cube": "cube", "reach-target": "target",  # SO-101
 }  # fmt: skip
 _BOX, _SPHERE = 6, 2  # mjGEOM_BOX, mjGEOM_SPHERE

@@ -69,6 +69,20 @@ def test_panda_random_dry_run_evaluates_with_rnd_panda(tmp_path):
     assert "rnd_mw" not in " ".join(cmds)
 
 
+def test_panda_multitask_pair_records_one_dataset_and_evaluates_both_tasks(tmp_path):
+    """Issue 35's Panda pair (two cubes, the task names the one to lift) through --multitask: one recording of both
+    tasks, one training run per method, every evaluation call covering both tasks."""
+    _needs_panda()
+    cmds = _dry_run(tmp_path, "--suite", "panda", "--scale", "cpu", "--multitask", "--tasks",
+                    "lift-red-cube,lift-blue-cube", "--demos", "10", "--methods", "rnd_ai,act")  # fmt: skip
+    (rec,) = [c for c in cmds if "lerobot-rnd-record" in c]
+    assert "--suite panda" in rec and "--task lift-red-cube,lift-blue-cube" in rec and "--episodes 10" in rec
+    train = [c for c in cmds if "lerobot-train" in c]
+    assert len(train) == 2 and all("--env.task=lift-red-cube,lift-blue-cube" in c for c in train)
+    ev = [c for c in cmds if "lerobot-eval" in c]
+    assert ev and all("--env.type=rnd_panda" in c and "--env.task=lift-red-cube,lift-blue-cube" in c for c in ev)
+
+
 def test_metaworld_spatial_keeps_the_recorders_fps(tmp_path):
     cmds = _dry_run(tmp_path, "--scale", "smoke", "--protocol", "spatial", "--methods", "act")
     (rec,) = [c for c in cmds if "lerobot-rnd-record" in c]

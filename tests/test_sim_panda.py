@@ -121,6 +121,8 @@ EXPERT_PLACEMENTS = {
     "press-button": [[0.35, -0.12, 0.3], [0.53, 0.13, -0.7]],
     "pick-place": [[0.38, 0.10, 0.7, 0.52, -0.12]],
     "slide-block": [[0.38, -0.14, -0.78], [0.50, 0.08, 0.78]],  # opposite corners, yaw near -+45 degrees
+    "lift-red-cube": [[0.36, 0.12, 0.7, 0.50, -0.02, -0.3]],  # the other cube 19 cm away
+    "lift-blue-cube": [[0.52, -0.10, -0.6, 0.45, 0.03, 0.2]],  # 15 cm
 }
 
 
@@ -135,7 +137,7 @@ def test_expert_succeeds(task):
             a = expert.act(env)
             assert a.shape == (7,) and a.dtype == np.float32 and np.abs(a).max() <= 1.0
             _, _, term, trunc, info = env.step(a)
-            if task in ("lift-cube", "pick-place") and grasp_yaw is None and a[6] > 0:
+            if task in ("lift-cube", "pick-place", "lift-red-cube", "lift-blue-cube") and grasp_yaw is None and a[6] > 0:
                 grasp_yaw = yaw_of_ee(env.ee_pose())
             if term or trunc:
                 break
@@ -145,6 +147,43 @@ def test_expert_succeeds(task):
             assert abs(d) < math.radians(4), (math.degrees(grasp_yaw), placement)
             assert abs(grasp_yaw) > math.radians(30)
     env.close()
+
+
+def test_two_cube_tasks_show_the_same_scene_and_only_the_task_decides_success():
+    """lift-red-cube and lift-blue-cube (issue 35's pair): with the cubes at the same poses the two tasks render
+    identical images and states, yet the same actions (the red expert's) succeed in one and not the other; the
+    placement lists the task's cube first, so one seed draws the same pose for the cube each task lifts."""
+    red, blue = small_env("lift-red-cube", episode_length=60), small_env("lift-blue-cube", episode_length=60)
+    pose_red, pose_blue = [0.38, 0.10, 0.6], [0.50, -0.06, -0.2]
+    obs_r, _ = red.reset(options={"placement": pose_red + pose_blue})
+    obs_b, _ = blue.reset(options={"placement": pose_blue + pose_red})
+    np.testing.assert_array_equal(obs_r["pixels"]["front"], obs_b["pixels"]["front"])
+    np.testing.assert_array_equal(obs_r["agent_pos"], obs_b["agent_pos"])
+    assert red.task_description != blue.task_description and "red" in red.task_description
+    np.testing.assert_allclose(red.object_pos()[:2], pose_red[:2], atol=1e-3)
+    np.testing.assert_allclose(blue.object_pos()[:2], pose_blue[:2], atol=1e-3)
+    expert = PandaExpert("lift-red-cube")
+    for _ in range(60):
+        a = expert.act(red)
+        _, _, term_r, _, info_r = red.step(a)
+        _, _, term_b, _, info_b = blue.step(a)
+        assert not info_b["is_success"]
+        if term_r:
+            break
+    assert info_r["is_success"] and not term_b
+    # the red cube went up in both envs, the blue one stayed on the table
+    assert red.data.body("red_cube").xpos[2] > 0.09 and blue.data.body("red_cube").xpos[2] > 0.09
+    assert abs(blue.data.body("blue_cube").xpos[2] - 0.02) < 2e-3
+    # one seed, the same pose for the cube to lift; the other cube's yaw is periodic too
+    red.reset(seed=5)
+    blue.reset(seed=5)
+    np.testing.assert_array_equal(red.placement, blue.placement)
+    np.testing.assert_allclose(red.placement_periods(), [0, 0, math.pi / 2, 0, 0, math.pi / 2])
+    too_close = [0.40, 0.0, 0.0, 0.48, 0.05, 0.0]  # 9.4 cm apart
+    with pytest.raises(ValueError, match="cube-cube distance >= 0.12"):
+        red.reset(options={"placement": too_close})
+    red.close()
+    blue.close()
 
 
 def test_slide_block_target_turns_with_the_block_and_so_does_the_push():

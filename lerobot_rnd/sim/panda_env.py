@@ -16,6 +16,10 @@
   paper's spatial-generalisation task, where block and target are placed as one): the disc lies
   ``panda_scene.SLIDE_DISTANCE`` (10 cm) along the block's local +y axis, so the push direction, and the gripper's yaw,
   turn with the block's yaw (+-45 degrees); the placement is the block's [x, y, yaw] only.
+- ``lift-red-cube`` and ``lift-blue-cube``: a red and a blue 4 cm cube, each at a random position and yaw, at least
+  :data:`CUBES_MIN_DISTANCE` (12 cm) apart; lift the cube the task names (success as ``lift-cube``, for that cube).
+  Both tasks show the same scene, so only the task string tells them apart: the pair of issue 35's multi-task
+  comparison, trained together with ``lerobot-rnd-record --suite panda --task lift-red-cube,lift-blue-cube``.
 
 The scene (:mod:`lerobot_rnd.sim.panda_scene`) is gym-hil's Panda with the Robotiq 2F-85
 (``gym_hil/assets/panda.xml``, gym-hil 0.1.14 is used only for its assets) plus a floor, lights, a static
@@ -62,7 +66,9 @@ while moving at full speed: the EE poses reached k steps later match the adapter
 
 Placement (:meth:`RnDPandaEnv.placement_space`): ``lift-cube`` / ``press-button``: [x, y, yaw] of the
 cube / button box / slide-block's block; ``push-block`` / ``pick-place``: [block / cube x, y, yaw, target x, y]
-(:func:`placement_target_xy` gives every task's target from its placement).
+(:func:`placement_target_xy` gives every task's target from its placement); ``lift-red-cube`` /
+``lift-blue-cube``: [x, y, yaw of the cube to lift, x, y, yaw of the other cube], so the first three numbers are the
+task's object in every task, and one seed puts the cube to lift at the same pose in both tasks.
 ``reset(options={"placement": vec})`` for an exact placement; otherwise ``placement="random"`` draws
 from the range with the env's seeded RNG (``reset(seed=...)`` makes it reproducible), or
 ``placement="fixed"`` cycles through ``placements``.
@@ -109,6 +115,7 @@ from lerobot_rnd.sim.panda_scene import (
     PANDA_TASKS,
     PHYSICS_DT,
     START_POS,
+    TWO_CUBE_TASKS,
     build_model,
     check_task,
     placement_target_xy,
@@ -124,6 +131,8 @@ TASK_DESCRIPTIONS = {
     "press-button": "Press the red button",
     "pick-place": "Put the purple cube on the green target",
     "slide-block": "Slide the blue block onto the green target",
+    "lift-red-cube": "Pick up the red cube and lift it",
+    "lift-blue-cube": "Pick up the blue cube and lift it",
 }
 DEFAULT_CAMERAS = ("front", "wrist")
 STATE_NAMES = ["ee_x", "ee_y", "ee_z", "ee_qw", "ee_qx", "ee_qy", "ee_qz", "gripper_open"]
@@ -171,10 +180,15 @@ PLACEMENT_RANGES = {
     # block x, y, yaw (the target follows, SLIDE_DISTANCE along the block's +y: the range leans to -y so that the
     # target, 7-10 cm further to +y, stays inside the front camera's view, x 0.31-0.57, y -0.07-0.18)
     "slide-block": (np.array([0.38, -0.14, -math.pi / 4]), np.array([0.50, 0.08, math.pi / 4])),
+    # x, y, yaw of the cube to lift, then of the other cube (each over lift-cube's range)
+    **{t: (np.array([0.33, -0.15, -math.pi / 4] * 2), np.array([0.55, 0.15, math.pi / 4] * 2)) for t in TWO_CUBE_TASKS},
 }
 PLACE_MIN_DISTANCE = 0.10
 PUSH_MIN_DISTANCE = 0.10
 PUSH_MAX_DISTANCE = 0.22
+#: lift-red-cube / lift-blue-cube: the least distance between the cube centres (m): the open Robotiq's outer finger
+#: links reach about 5.5 cm from the grasped cube's centre, the other cube's corner up to 2.8 cm from its own
+CUBES_MIN_DISTANCE = 0.12
 
 
 def canonical_ee_quat(q: np.ndarray) -> np.ndarray:
@@ -283,12 +297,14 @@ class RnDPandaEnv(RnDMuJoCoEnv):
         slide-block's yaw has none: its target turns with the block, 90 degrees apart it lies elsewhere."""
         periods = np.zeros(len(PLACEMENT_RANGES[self.task][0]))
         periods[2] = 0.0 if self.task == "slide-block" else OBJECT_YAW_PERIOD
+        if self.task in TWO_CUBE_TASKS:
+            periods[5] = OBJECT_YAW_PERIOD  # the other cube's yaw
         return periods
 
     def is_valid_placement(self, placement: Sequence[float]) -> bool:
         """Whether the placement has the right size, lies in the range (1 mm tolerance), and (push-block,
         slide-block) the target is 10-22 cm from the block with the pushing start point inside the workspace /
-        (pick-place) at least 10 cm from the cube."""
+        (pick-place) at least 10 cm from the cube / (two cubes) the cubes at least 12 cm apart."""
         vec = np.asarray(placement, dtype=np.float64)
         low, high = PLACEMENT_RANGES[self.task]
         if vec.shape != low.shape or not np.all(np.isfinite(vec)):
@@ -306,6 +322,8 @@ class RnDPandaEnv(RnDMuJoCoEnv):
                 return False
         if self.task == "pick-place" and np.linalg.norm(vec[3:5] - vec[0:2]) < PLACE_MIN_DISTANCE:
             return False
+        if self.task in TWO_CUBE_TASKS and np.linalg.norm(vec[3:5] - vec[0:2]) < CUBES_MIN_DISTANCE:
+            return False
         return True
 
     def _check_placement(self, vec: np.ndarray) -> np.ndarray:
@@ -321,6 +339,7 @@ class RnDPandaEnv(RnDMuJoCoEnv):
                 + {
                     "push-block": f", block-target distance {PUSH_MIN_DISTANCE}-{PUSH_MAX_DISTANCE} m)",
                     "pick-place": f", cube-target distance >= {PLACE_MIN_DISTANCE} m)",
+                    **dict.fromkeys(TWO_CUBE_TASKS, f", cube-cube distance >= {CUBES_MIN_DISTANCE} m)"),
                 }.get(self.task, ")")
             )
         return vec
@@ -338,6 +357,11 @@ class RnDPandaEnv(RnDMuJoCoEnv):
             d.qpos[adr : adr + 3] = [vec[0], vec[1], BLOCK_HALF[2]]
             d.qpos[adr + 3 : adr + 7] = yaw_quat(vec[2])
             m.body_pos[m.body("target_marker").id] = [*placement_target_xy(self.task, vec), 0.0]
+        elif self.task in TWO_CUBE_TASKS:
+            for name, pose in zip(TWO_CUBE_TASKS[self.task], (vec[0:3], vec[3:6]), strict=True):
+                adr = m.joint(name).qposadr[0]
+                d.qpos[adr : adr + 3] = [pose[0], pose[1], CUBE_HALF]
+                d.qpos[adr + 3 : adr + 7] = yaw_quat(pose[2])
         elif self.task == "press-button":
             b = m.body("button_box").id
             m.body_pos[b] = [vec[0], vec[1], 0.0]
@@ -432,11 +456,13 @@ class RnDPandaEnv(RnDMuJoCoEnv):
         return np.concatenate([pos, q, [self.gripper_opening()]]).astype(np.float32)
 
     def object_pos(self) -> np.ndarray:
-        """Centre of the cube / block, or (press-button) the centre of the button's top face when not
-        pressed, in the world."""
+        """Centre of the cube (two cubes: the one to lift) / block, or (press-button) the centre of the button's top
+        face when not pressed, in the world."""
         d = self.data
         if self.task in ("lift-cube", "pick-place"):
             return d.body("cube").xpos.copy()
+        if self.task in TWO_CUBE_TASKS:
+            return d.body(TWO_CUBE_TASKS[self.task][0]).xpos.copy()
         if self.task in BLOCK_TASKS:
             return d.body("block").xpos.copy()
         top = 2 * (BUTTON_HOUSING_HALF[2] + BUTTON_HALF_HEIGHT)
@@ -444,6 +470,8 @@ class RnDPandaEnv(RnDMuJoCoEnv):
 
     def object_quat(self) -> np.ndarray:
         d = self.data
+        if self.task in TWO_CUBE_TASKS:
+            return d.body(TWO_CUBE_TASKS[self.task][0]).xquat.copy()
         name = "block" if self.task in BLOCK_TASKS else {"press-button": "button_box"}.get(self.task, "cube")
         return d.body(name).xquat.copy()
 
@@ -461,7 +489,7 @@ class RnDPandaEnv(RnDMuJoCoEnv):
 
     @property
     def success_now(self) -> bool:
-        if self.task == "lift-cube":
+        if self.task == "lift-cube" or self.task in TWO_CUBE_TASKS:
             return bool(self.object_pos()[2] - self._object_z0 > LIFT_SUCCESS_HEIGHT)
         if self.task in BLOCK_TASKS:
             return bool(np.linalg.norm(self.object_pos()[:2] - self.target_pos()[:2]) < PUSH_SUCCESS_RADIUS)

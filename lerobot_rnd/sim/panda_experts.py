@@ -9,6 +9,7 @@ with the controller's lag. The state machine restarts whenever the env is at ste
 
 - ``lift-cube``: above the cube with the gripper turned to the cube's yaw (modulo 90 degrees, so the
   fingers close on two opposite faces), descend, close, lift to 20 cm (re-grasps if the cube drops).
+  ``lift-red-cube`` / ``lift-blue-cube`` do the same with the cube the task names.
 - ``push-block`` and ``slide-block``: closed gripper turned so that the broad side of the finger pads faces the
   push direction, go behind the block on the block-target line, lower, push along the (re-planned every
   step) line; back off and re-approach when the block slips sideways.
@@ -33,6 +34,7 @@ from lerobot_rnd.sim.panda_scene import (
     CUBE_HALF,
     HOME_QUAT,
     PANDA_TASKS,
+    TWO_CUBE_TASKS,
     placement_target_xy,
 )
 from lerobot_rnd.sim.quaternions import matrix_to_quat, quat_mul, quat_to_rotvec, yaw_quat
@@ -64,10 +66,10 @@ def push_start_xy(block_xy: np.ndarray, target_xy: np.ndarray) -> np.ndarray:
 
 def first_contact_point(task: str, placement) -> np.ndarray:
     """(3,) world position (m) of the EE where the scripted expert of ``task`` first meets its object, from an
-    episode's placement [x, y, yaw, (target x, y)]: lift-cube / pick-place the cube's centre (the grasp);
+    episode's placement [x, y, yaw, ...]: lift-cube / pick-place / two cubes the (named) cube's centre (the grasp);
     push-block / slide-block the push start behind the block at pushing height; press-button the button's top."""
     p = np.asarray(placement, np.float64)
-    if task in ("lift-cube", "pick-place"):
+    if task in ("lift-cube", "pick-place", *TWO_CUBE_TASKS):
         return np.array([p[0], p[1], CUBE_HALF])
     if task in BLOCK_TASKS:
         return np.array([*push_start_xy(p[:2], placement_target_xy(task, p)), PUSH_Z])
@@ -289,7 +291,7 @@ class PandaExpert:
         if env.steps == 0 and self.memory.get("_last_step", None) != 0:
             self.reset()
         self.memory["_last_step"] = env.steps
-        if self.task == "lift-cube":
+        if self.task == "lift-cube" or self.task in TWO_CUBE_TASKS:
             a = self._lift_cube(env)
         elif self.task == "pick-place":
             a = self._lift_cube(env, place=True)

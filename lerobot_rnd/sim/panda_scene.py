@@ -17,9 +17,12 @@ import numpy as np
 from lerobot_rnd.gripper_mesh import cluster_decimate
 from lerobot_rnd.sim.mujoco_env import default_headless_gl
 
-PANDA_TASKS = ("lift-cube", "push-block", "press-button", "pick-place", "slide-block")
 #: the tasks that push the blue block onto a target disc (the same scene, object and expert)
 BLOCK_TASKS = ("push-block", "slide-block")
+#: a red and a blue cube in one scene, the task names the cube to lift: the same images for both tasks, so only the
+#: task string tells them apart (issue 35's multi-task pair); task -> (the cube to lift, the other cube)
+TWO_CUBE_TASKS = {"lift-red-cube": ("red_cube", "blue_cube"), "lift-blue-cube": ("blue_cube", "red_cube")}
+PANDA_TASKS = ("lift-cube", "push-block", "press-button", "pick-place", "slide-block", *TWO_CUBE_TASKS)
 GYM_HIL_VERSION = "0.1.14"
 INSTALL_HINT = f"pip install --no-deps gym-hil=={GYM_HIL_VERSION}  (only its MuJoCo assets are used)"
 
@@ -141,17 +144,21 @@ def _target_marker_xml(radius: float) -> str:
     </body>"""
 
 
-def _free_box_xml(name: str, half: Sequence[float], mass: float, rgba: str) -> str:
-    """A free box (body, joint and geom ``name``) of half extents ``half`` resting on the table."""
+def _free_box_xml(name: str, half: Sequence[float], mass: float, rgba: str, xy: Sequence[float] = (0.45, 0.0)) -> str:
+    """A free box (body, joint and geom ``name``) of half extents ``half`` resting on the table at ``xy``."""
     hx, hy, hz = half
     return f"""
-    <body name="{name}" pos="0.45 0 {hz}">
+    <body name="{name}" pos="{xy[0]} {xy[1]} {hz}">
       <freejoint name="{name}"/>
       <geom name="{name}" type="box" size="{hx} {hy} {hz}" mass="{mass}" rgba="{rgba}"/>
     </body>"""
 
 
 def _task_xml(task: str) -> str:
+    if task in TWO_CUBE_TASKS:
+        h = CUBE_HALF
+        red = _free_box_xml("red_cube", (h, h, h), mass=0.1, rgba=".85 .12 .12 1", xy=(0.40, -0.08))
+        return red + _free_box_xml("blue_cube", (h, h, h), mass=0.1, rgba=".12 .3 .9 1", xy=(0.50, 0.08))
     if task in ("lift-cube", "pick-place"):
         h = CUBE_HALF
         target = "" if task == "lift-cube" else _target_marker_xml(TARGET_RADIUS + 0.01)
