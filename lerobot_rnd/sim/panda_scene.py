@@ -144,7 +144,7 @@ def _target_marker_xml(radius: float) -> str:
     </body>"""
 
 
-def _free_box_xml(name: str, half: Sequence[float], mass: float, rgba: str, xy: Sequence[float] = (0.45, 0.0)) -> str:
+def _free_box_xml(name: str, half: Sequence[float], mass: float, rgba: str, xy: Sequence[float] = (0.45, 0)) -> str:
     """A free box (body, joint and geom ``name``) of half extents ``half`` resting on the table at ``xy``."""
     hx, hy, hz = half
     return f"""
