@@ -244,3 +244,27 @@ def test_few_demo_gap_sums_only_cells_both_methods_finished_with_at_most_8_demos
     assert "ACT, over the 2 cells" in lines[0] and "(lift-cube 2, lift-cube 8)" in lines[0]
     assert "R&D-AI 24/54" in lines[0] and "ACT 4/54" in lines[0] and "+37 points" in lines[0]
     assert "Diffusion Policy, over the 1 cell with" in lines[1] and "9/27" in lines[1] and "+44 points" in lines[1]
+
+
+def test_panda_training_length_section_pairs_each_methods_3000_and_6000_step_runs(tmp_path, monkeypatch):
+    import json
+
+    import benchmarks.write_benchmarks_md as w
+
+    monkeypatch.setattr(w, "RESULTS", tmp_path)
+
+    def run(folder, name, k, curve, status="done"):
+        runs = tmp_path / folder / "runs"
+        runs.mkdir(parents=True, exist_ok=True)
+        chunk = {"0:27": {"successes": [True] * k + [False] * (27 - k)}}
+        (runs / f"{name}__lift-cube__n8__seed0.json").write_text(
+            json.dumps({"status": status, "eval_chunks": chunk, "loss_curve": curve}))
+
+    run(w.PANDA_SPATIAL_FOLDER, "rnd_ai", 21, [[2950, 0.2], [3000, 0.19]])
+    run(w.PANDA_SPATIAL_FOLDER, "act", 4, [[3000, 0.13]])
+    assert w.panda_training_length_section() == []  # no 6,000-step run finished: no section
+    run(w.PANDA_LONG_FOLDER, "act", 9, [[3000, 0.125], [3050, 0.12], [6000, 0.07]])
+    run(w.PANDA_LONG_FOLDER, "rnd_ai", 0, [[3000, 0.18]], status="training")  # unfinished: not shown as done
+    text = "\n".join(w.panda_training_length_section())
+    assert "| ACT | 4/27 (6-32%) | 9/27 (19-52%) | 0.130 / 0.125 / 0.070 |" in text  # Wilson 95% for 9/27: 18.6-51.9%
+    assert "| R&D-AI | 21/27 (59-89%) | not run yet | 0.190 / 0.180 / – |" in text
