@@ -158,7 +158,9 @@ STATUS: dict[str, tuple[str, str]] = {
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
     "panda_spatial_6000": (CURRENT, ("Issue 33: Panda lift-cube, 8 furthest-point demos, the panda_spatial set-up "
                            "trained 6,000 steps instead of 3,000 (ACT's loss was still falling), the same 27 test "
-                           "cells: ACT 3/27 (loss 0.059; 4/27 at 3,000 steps); R&D-AI running.")),
+                           "cells: R&D-AI 22/27 (21/27 at 3,000 steps; loss 0.068), ACT 3/27 (4/27 at 3,000; "
+                           "loss 0.129 -> 0.059). ACT's training cost counts only steps 2,000-6,000 (the first 2,000 "
+                           "ran in an earlier session, and the run resumed from their checkpoint).")),
     "panda_spatial": (CURRENT, ("Issue 33, in progress: Panda lift-cube and push-block, spatial protocol (furthest-point demos from the "
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps, "
                       "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
