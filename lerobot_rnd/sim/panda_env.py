@@ -186,8 +186,9 @@ PLACEMENT_RANGES = {
 PLACE_MIN_DISTANCE = 0.10
 PUSH_MIN_DISTANCE = 0.10
 PUSH_MAX_DISTANCE = 0.22
-#: lift-red-cube / lift-blue-cube: the least distance between the cube centres (m): the open Robotiq's outer finger
-#: links reach about 5.5 cm from the grasped cube's centre, the other cube's corner up to 2.8 cm from its own
+#: lift-red-cube / lift-blue-cube: the least distance between the cube centres (m): the open Robotiq's pads stand
+#: 4.25 cm either side of the grasped cube's centre (85 mm opening), plus their links; the other cube's corner lies up
+#: to 2.8 cm from its own centre
 CUBES_MIN_DISTANCE = 0.12
 
 
