@@ -612,6 +612,54 @@ def multitask_section(one_step: dict | None) -> list[str]:
     return lines
 
 
+# Issue 35's Panda pair: one scene with a red and a blue cube; only the task string says which cube to lift.
+PANDA_PAIR_TASKS = ("lift-red-cube", "lift-blue-cube")
+PANDA_PAIR_FOLDER = "panda_multitask_pair"
+
+
+def panda_pair_section() -> list[str]:
+    """One policy for the Panda pair (R&D-AI conditioned on the task string, ACT without a task input): successes
+    per task from the --multitask run JSON of PANDA_PAIR_FOLDER, and whether R&D-AI separates the tasks (at least
+    twice ACT's success on each, issue 35's condition). [] until some method's run has finished."""
+    cells = {m: run_file_cells(PANDA_PAIR_FOLDER, m, PANDA_PAIR_TASKS) for m in ("rnd_ai", "act")}
+    if not any(cells.values()):
+        return []
+    lines = [
+        "### The Panda pair whose tasks share a scene (issue 35; 10 demos of each task, 3,000 steps)",
+        "",
+        ("`lift-red-cube` and `lift-blue-cube` (`--env.type=rnd_panda`) show the same scene: a red and a blue 4 cm "
+         "cube, each at a random position and yaw, at least 12 cm apart. The task string names the cube to lift, and "
+         "lifting the other one fails, so only the task string tells the two tasks apart. `python "
+         "benchmarks/run_benchmark.py --suite panda --scale cpu --multitask --tasks "
+         f"{','.join(PANDA_PAIR_TASKS)} --demos 10 --methods rnd_ai,act --steps 3000 --out "
+         f"benchmarks/results/{PANDA_PAIR_FOLDER}` records 10 random-placement demos of each task into one dataset, "
+         "trains one policy per method on it and evaluates it on each task from seeds 1000-1049 "
+         f"([`{PANDA_PAIR_FOLDER}`](../benchmarks/results/{PANDA_PAIR_FOLDER}/)). R&D-AI reads the task string (one "
+         "learned token per task); ACT has no task input, so it cannot know which cube to lift."),
+        "",
+        "| method | " + " | ".join(f"`{t}`" for t in PANDA_PAIR_TASKS) + " | both | training loss at the end |",
+        "| --- |" + " ---: |" * (len(PANDA_PAIR_TASKS) + 2),
+    ]
+    for method in ("rnd_ai", "act"):
+        got = cells[method]
+        text = [cell(*got[t]) if t in got else "not run yet" for t in PANDA_PAIR_TASKS]
+        text.append(cell(sum(got[t][0] for t in got), sum(got[t][1] for t in got)) if got else "–")
+        loss = final_loss(PANDA_PAIR_FOLDER, method, PANDA_PAIR_TASKS) if got else None
+        text.append("–" if loss is None else f"{loss:.3f}")
+        lines.append(f"| {TABLE_METHODS[method]} | " + " | ".join(text) + " |")
+    rnd, act = cells["rnd_ai"], cells["act"]
+    if rnd and act:
+        # "At least twice ACT's success" on every task; a task both methods fail is not separated.
+        separated = [t for t in PANDA_PAIR_TASKS
+                     if rnd[t][0] > 0 and rnd[t][0] / rnd[t][1] >= 2 * act[t][0] / act[t][1]]  # fmt: skip
+        verdict = ("R&D-AI separates the tasks: on each its success is at least twice ACT's (issue 35's condition)."
+                   if len(separated) == len(PANDA_PAIR_TASKS) else
+                   "R&D-AI does not meet issue 35's condition (at least twice ACT's success on each task): it does on "
+                   + (", ".join(f"`{t}`" for t in separated) if separated else "neither task") + ".")  # fmt: skip
+        lines += ["", verdict]
+    return lines
+
+
 TABLE_METHODS = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}
 
 
@@ -773,6 +821,8 @@ def current_block() -> list[str]:
     parts += reach_n20_section(n20_6000) + [""]
     if (RESULTS / MULTITASK_FOLDER).exists():
         parts += multitask_section(one_step) + [""]
+    pair = panda_pair_section()
+    parts += pair + [""] if pair else []
     if (RESULTS / SO101_FOLDER / "runs").exists():
         parts += so101_section() + [""]
     panda = panda_spatial_section()

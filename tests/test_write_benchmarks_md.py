@@ -268,3 +268,38 @@ def test_panda_training_length_section_pairs_each_methods_3000_and_6000_step_run
     text = "\n".join(w.panda_training_length_section())
     assert "| ACT | 4/27 (6-32%) | 9/27 (19-52%) | 0.130 / 0.125 / 0.070 |" in text  # Wilson 95% for 9/27: 18.6-51.9%
     assert "| R&D-AI | 21/27 (59-89%) | not run yet | 0.190 / 0.180 / – |" in text
+
+
+def test_panda_pair_section_tables_each_task_and_says_whether_rnd_doubles_act_on_both(tmp_path, monkeypatch):
+    import json
+
+    import benchmarks.write_benchmarks_md as w
+
+    monkeypatch.setattr(w, "RESULTS", tmp_path)
+    runs = tmp_path / w.PANDA_PAIR_FOLDER / "runs"
+    runs.mkdir(parents=True)
+
+    def run(method, red, blue, status="done", loss=0.1):
+        # Two lerobot-eval chunks of a --multitask run: each holds both tasks' successes.
+        chunks = {f"{i}:{i + 25}": {"successes": {"lift-red-cube": [True] * r + [False] * (25 - r),
+                                                  "lift-blue-cube": [True] * b + [False] * (25 - b)}}
+                  for i, r, b in ((0, red[0], blue[0]), (25, red[1], blue[1]))}  # fmt: skip
+        (runs / f"{method}__lift-red-cube+lift-blue-cube__n10__seed0.json").write_text(
+            json.dumps({"status": status, "eval_chunks": chunks, "loss_curve": [[3000, loss]]}))
+
+    assert w.panda_pair_section() == []  # nothing finished: no section
+    run("rnd_ai", (20, 10), (12, 12), loss=0.0654)
+    run("act", (0, 0), (0, 0), status="training")
+    text = "\n".join(w.panda_pair_section())
+    # Wilson 95% by hand: 30/50 46.2-72.4%, 24/50 34.8-61.5%, 54/100 44.3-63.4%.
+    assert "| R&D-AI | 30/50 (46-72%) | 24/50 (35-61%) | 54/100 (44-63%) | 0.065 |" in text
+    assert "| ACT | not run yet | not run yet | – | – |" in text and "separates" not in text
+    run("act", (10, 10), (3, 2))  # 20/50 (28-54%) and 5/50 (4-21%): R&D-AI's 60% is less than twice 40%
+    text = "\n".join(w.panda_pair_section())
+    assert "| ACT | 20/50 (28-54%) | 5/50 (4-21%) | 25/100 (18-34%) | 0.100 |" in text
+    assert "does not meet" in text and "it does on `lift-blue-cube`." in text
+    run("act", (10, 5), (3, 2))  # red 15/50: 60% is exactly twice 30%, which counts
+    assert "R&D-AI separates the tasks" in "\n".join(w.panda_pair_section())
+    run("rnd_ai", (0, 0), (0, 0))
+    run("act", (0, 0), (0, 0))  # both fail everywhere: nothing is separated
+    assert "it does on neither task." in "\n".join(w.panda_pair_section())
