@@ -150,6 +150,60 @@ def _checkpoint(tmp_path, method: str, step: int) -> None:
     (ckpt / "last").symlink_to(f"{step:06d}")
 
 
+
+def test_a_harness_killed_mid_slice_keeps_the_cost_of_the_steps_it_checkpointed(tmp_path, monkeypatch):
+    """A session that ends kills the harness mid-slice: the run resumes from its last checkpoint, and the steps
+    before it once vanished from the run's cost (a 6,000-step run's JSON counted only its last 4,000 steps).
+    Each checkpoint now records the slice so far; a slice that ends replaces that record with its own."""
+    import time
+
+    from benchmarks.harness import processes
+    from benchmarks.harness import runs as harness_runs
+
+    a = cli.parse_args(["--scale", "smoke", "--methods", "act", "--steps", "4", "--save-freq", "2",
+                        "--out", str(tmp_path / "out"), "--work-dir", str(tmp_path / "work"),
+                        "--data-dir", str(tmp_path / "data")])  # fmt: skip
+    bench = Benchmark(a)
+    rdir = bench.run_dir("act", "reach-v3", 3, 0)
+    ckroot = rdir / "train" / "checkpoints"
+
+    def save(step):  # what lerobot-train leaves at a checkpoint
+        if (ckroot / "last").is_symlink():
+            (ckroot / "last").unlink()
+        _checkpoint(tmp_path, "act", step)
+
+    class HarnessKilled(BaseException):
+        pass
+
+    def first_session(argv, log, deadline=None, poll=None, env=None, dry_run=False, marks=None):
+        marks["train_loop_start"] = time.time()
+        save(2)
+        assert poll() is None
+        raise HarnessKilled  # the session ends before step 4: nothing after this line runs
+
+    monkeypatch.setattr(harness_runs, "run_logged", first_session)
+    st: dict = {}
+    with pytest.raises(HarnessKilled):
+        bench.train("act", "reach-v3", 3, 0, st)
+    killed = json.loads((rdir / "run.json").read_text())["train_slices"]
+    assert [(s["start_step"], s["end_step"], s.get("provisional")) for s in killed] == [(0, 2, True)]
+    assert killed[0]["loop_s"] >= 0 and killed[0]["wall_s"] >= killed[0]["loop_s"]
+
+    def second_session(argv, log, deadline=None, poll=None, env=None, dry_run=False, marks=None):
+        assert "--resume=true" in argv
+        marks["train_loop_start"] = time.time()
+        save(4)
+        assert poll() is None
+        return processes.ProcResult(rc=0, wall_s=0.5, marks=marks)
+
+    monkeypatch.setattr(harness_runs, "run_logged", second_session)
+    st = json.loads((rdir / "run.json").read_text())
+    bench.train("act", "reach-v3", 3, 0, st)
+    slices = json.loads((rdir / "run.json").read_text())["train_slices"]
+    # The killed slice stays; the one that ended is recorded once, without the flag.
+    assert [(s["start_step"], s["end_step"], s.get("provisional")) for s in slices] == [(0, 2, True), (2, 4, None)]
+    assert slices[1]["rc"] == 0 and slices[1]["wall_s"] == 0.5
+
 def test_eval_only_evaluates_only_runs_trained_to_the_end(tmp_path):
     """--eval-only collects what is trained: a run never trained is left for later, not marked failed (it once
     was, and results.md listed it as FAILED), and so is a run still training (it once was evaluated at its last

@@ -70,10 +70,11 @@ class ProcResult:
 
 
 def run_logged(argv: list[str], log_path: Path, deadline: float | None = None, poll=None,
-               env: dict | None = None, dry_run: bool = False) -> ProcResult:  # fmt: skip
+               env: dict | None = None, dry_run: bool = False, marks: dict | None = None) -> ProcResult:  # fmt: skip
     """Run ``argv`` in its own process group, stdout+stderr appended to ``log_path``.
 
-    Stops it (SIGTERM, then SIGKILL) at ``deadline`` or when ``poll()`` returns a reason. ``marks`` holds
+    Stops it (SIGTERM, then SIGKILL) at ``deadline`` or when ``poll()`` returns a reason. ``marks`` (the
+    caller's dict, filled while the command runs, so that ``poll`` can read it; a new one when None) holds
     the wall-clock time of the first "Start offline training" line (the start of LeRobot's training loop).
     """
     log_path.parent.mkdir(parents=True, exist_ok=True)
@@ -81,7 +82,7 @@ def run_logged(argv: list[str], log_path: Path, deadline: float | None = None, p
     if dry_run:
         return ProcResult(rc=0, wall_s=0.0)
     t0 = time.time()
-    marks: dict = {}
+    marks = {} if marks is None else marks
     tail: list[bytes] = []
     with open(log_path, "ab") as log:
         log.write(f"\n# {dt.datetime.now().isoformat(timespec='seconds')}\n$ {shlex.join(argv)}\n".encode())

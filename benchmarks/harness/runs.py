@@ -385,16 +385,20 @@ class Benchmark:
                     shutil.rmtree(tdir)  # a start that never reached a checkpoint
                 argv = self.train_argv(method, task, n, seed, tdir)
                 st.setdefault("commands", {})["train"] = argv
-            poll = self._checkpoint_poller(ckroot)
+            marks: dict = {}
+            poll = self._slice_recorder(self._checkpoint_poller(ckroot), ckroot, step, marks, st, rdir / "run.json")
             deadline = None if self.deadline is None else self.deadline - a.exit_margin_s
-            r = run_logged(argv, log, deadline=deadline, poll=poll, env=self.env(), dry_run=a.dry_run)
+            r = run_logged(argv, log, deadline=deadline, poll=poll, env=self.env(), dry_run=a.dry_run, marks=marks)
             if a.dry_run:
                 return
             end_step = checkpoint_step(ckroot)
             loop_s = (time.time() - r.marks["train_loop_start"]) if "train_loop_start" in r.marks else None
             if loop_s is not None:
                 loop_s = min(loop_s, r.wall_s)
-            st.setdefault("train_slices", []).append({
+            slices = st.setdefault("train_slices", [])
+            if slices and slices[-1].get("provisional") and slices[-1]["start_step"] == step:
+                slices.pop()  # this slice's record up to its last checkpoint, replaced by the final one
+            slices.append({
                 "start_step": step, "end_step": end_step, "wall_s": round(r.wall_s, 2),
                 "loop_s": None if loop_s is None else round(loop_s, 2), "rc": r.rc, "stopped": r.stopped,
             })  # fmt: skip
@@ -409,6 +413,31 @@ class Benchmark:
             if end_step <= step:
                 raise RuntimeError(f"lerobot-train made no progress (step {step}); log {log}:\n{r.tail}")
         self._prune_checkpoints(ckroot)
+
+    @staticmethod
+    def _slice_recorder(poll, ckroot: Path, start_step: int, marks: dict, st: dict, run_json: Path):
+        """Wrap a training slice's ``poll`` so that each new checkpoint records the slice so far in ``run_json``
+        (``provisional``: timed up to that checkpoint). A harness killed mid-slice (a session's end) then keeps
+        the cost of the steps it trained, where the resumed run starts; a slice that ends replaces it."""
+        t0 = time.time()
+        seen = {"step": start_step}
+
+        def recording_poll():
+            step = checkpoint_step(ckroot)
+            if step > seen["step"]:
+                seen["step"] = step
+                now = time.time()
+                slices = st.setdefault("train_slices", [])
+                if slices and slices[-1].get("provisional") and slices[-1]["start_step"] == start_step:
+                    slices.pop()
+                loop = now - marks["train_loop_start"] if "train_loop_start" in marks else None
+                slices.append({"start_step": start_step, "end_step": step, "wall_s": round(now - t0, 2),
+                               "loop_s": None if loop is None else round(loop, 2), "rc": None,
+                               "stopped": None, "provisional": True})  # fmt: skip
+                _write_json(run_json, st)
+            return poll()
+
+        return recording_poll
 
     def _checkpoint_poller(self, ckroot: Path):
         """Stop training right after a checkpoint when the next one would not fit in the budget."""
