@@ -231,6 +231,32 @@ def test_train_only_trains_and_leaves_the_evaluation_for_later(tmp_path):
         cli.parse_args(["--scale", "smoke", "--train-only", "--eval-only"])
 
 
+
+def test_image_size_reaches_the_recorder_and_rnd_and_names_its_own_datasets(tmp_path):
+    cmds = _dry_run(tmp_path, "--methods", "rnd_ai,act", "--image-size", "192")
+    rec = [c for c in cmds if "lerobot-rnd-record" in c]
+    assert len(rec) == 1 and "--image-size 192" in rec[0] and "mw_reach-v3_random_s0_n3_img192" in rec[0]
+    train = [c for c in cmds if "lerobot-train" in c]
+    assert all("--dataset.root=" in c and c.count("_img192") == 2 for c in train)  # repo id and root
+    rnd, act = (next(c for c in train if f"/{m}/" in c) for m in ("rnd_ai", "act"))
+    assert "--policy.image_size=[192,192]" in rnd and "--policy.image_size" not in act  # ACT takes them as recorded
+    default = _dry_run(tmp_path / "default", "--methods", "rnd_ai")  # no flag: the datasets and commands of before
+    assert not [c for c in default if "--image-size" in c or "--policy.image_size" in c or "_img" in c]
+    assert any("--root " in c and c.split("--root ")[1].split()[0].endswith("mw_reach-v3_random_s0_n3") for c in default)
+
+
+def test_resume_refuses_another_image_size(tmp_path):
+    common = ["--scale", "smoke", "--methods", "act", "--out", str(tmp_path / "o"), "--work-dir", str(tmp_path / "w"),
+              "--data-dir", str(tmp_path / "d"), "--resume"]  # fmt: skip
+    (tmp_path / "w").mkdir()
+    (tmp_path / "w" / "state.json").write_text(json.dumps({"args": {"image_size": 192}}))
+    b = Benchmark(cli.parse_args(common))  # the default size: checkpoints trained on 192-px images must not resume
+    b.record = lambda task: (_ for _ in ()).throw(AssertionError("nothing may run"))
+    with pytest.raises(SystemExit, match="pass the same --image-size"):
+        b.run()
+    with pytest.raises(SystemExit):
+        cli.parse_args(["--scale", "smoke", "--image-size", "0"])
+
 def test_dry_run_with_two_demo_counts_extends_the_smaller_dataset(tmp_path):
     """Used to crash: the dry run copied the smaller dataset, which it never records."""
     cmds = _dry_run(tmp_path, "--demos", "3,5", "--methods", "act")

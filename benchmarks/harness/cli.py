@@ -66,6 +66,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--log-freq", type=int)
     p.add_argument("--num-workers", type=int)
     p.add_argument("--device")
+    p.add_argument("--image-size", type=int,
+                   help="camera images' side in pixels, for the demos (the recorder's --image-size), R&D's "
+                        "--policy.image_size and the evaluation (default: the recorder's 128); the datasets of "
+                        "another size are named with _img<N>")  # fmt: skip
     p.add_argument("--train-arg", action="append",
                    help="extra lerobot-train argument for some methods: 'METHOD:--x=y', 'rnd:--x=y' (all R&D "
                         "variants) or 'all:--x=y'; repeatable")  # fmt: skip
@@ -113,6 +117,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     a.seeds = _csv(a.seed, int)
     a.collect_from = _csv(a.collect_from)
     a.grid_dims = _csv(a.grid_dims, int) if a.grid_dims else None
+    if a.image_size is not None and a.image_size <= 0:
+        p.error(f"--image-size must be a positive number of pixels, got {a.image_size}")
     if a.grid_dims is not None and len(a.grid_dims) not in (2, 3):
         p.error("--grid-dims takes two or three coordinates")
     if a.suite != "metaworld":

@@ -40,6 +40,13 @@ DEMO_PLACEMENTS = {
 }  # fmt: skip
 
 
+def recorder_image_size() -> int:
+    """lerobot-rnd-record's default --image-size (imported when needed: the recorder pulls in the simulators)."""
+    from lerobot_rnd.sim.record import RecordSettings
+
+    return RecordSettings.image_size
+
+
 def checkpoint_step(ckroot: Path) -> int:
     """The training step of a run's last checkpoint (``ckroot/last``; lerobot-train saves it in the training state
     beside the model), 0 without one."""
@@ -103,8 +110,14 @@ class Benchmark:
         tasks = unit_tasks(task)
         if len(tasks) > 1:
             task = f"mt{len(tasks)}-{hashlib.sha1(','.join(tasks).encode()).hexdigest()[:8]}"
-        name = f"{self.suite['dataset_prefix']}_{task}_{self.placements_mode()}_s{a.record_seed}_n{n}"
+        size = self.image_size()
+        name = (f"{self.suite['dataset_prefix']}_{task}_{self.placements_mode()}_s{a.record_seed}_n{n}"
+                + ("" if size == recorder_image_size() else f"_img{size}"))  # fmt: skip
         return self.data_dir / name, f"local/{name}"
+
+    def image_size(self) -> int:
+        """The side of the camera images in pixels: --image-size, else the recorder's default."""
+        return self.a.image_size or recorder_image_size()
 
     def make_env(self, task: str):
         """The suite's env of ``task`` (placements and validity; nothing is rendered)."""
@@ -141,10 +154,12 @@ class Benchmark:
                         shutil.copytree(prev_root, root)
                     resume = True
                 self.need(60 + 8.0 * (n - (have if resume else 0)), f"recording {root.name}")
+                size = self.image_size()
                 argv = tool_argv("lerobot-rnd-record", a.launcher) + list(self.suite["record_args"]) + [
                     "--task", task, "--episodes", str(n), "--root", str(root), "--repo-id", repo_id,
                     "--placements", mode, "--seed", str(a.record_seed),
-                ] + (["--resume"] if resume else [])  # fmt: skip
+                ] + (["--image-size", str(size)] if size != recorder_image_size() else [])  # fmt: skip
+                argv += ["--resume"] if resume else []
                 r = run_logged(argv, self.work / "logs" / f"record_{root.name}.log", env=self.env(),
                                dry_run=a.dry_run)  # fmt: skip
                 if r.rc != 0:
@@ -238,7 +253,7 @@ class Benchmark:
                 shutil.copyfile(exact, used)
             return
         size = int((_read_json(meta / "info.json", {}) or {}).get("features", {}).get(
-            "observation.images.front", {}).get("shape", [128])[0])
+            "observation.images.front", {}).get("shape", [self.image_size()])[0])
         session = self.data_dir / "so101_calibration_session_s0"
         if not (session / "meta" / "info.json").exists():
             if session.exists():
@@ -340,6 +355,8 @@ class Benchmark:
         fam = method_family(method)
         per_scale = SCALES[self.a.scale]["method_args"]
         args = list(COMMON_METHOD_ARGS[fam]) + list(per_scale[fam]) + list(per_scale.get(method, []))
+        if fam == "rnd" and self.image_size() != recorder_image_size():  # ACT and DP take the dataset's images as they are
+            args.append(f"--policy.image_size=[{self.image_size()},{self.image_size()}]")
         for spec in self.a.train_arg or []:
             who, _, arg = spec.partition(":")
             if who in ("all", method, fam):
@@ -575,6 +592,11 @@ class Benchmark:
         if prev is not None and not a.resume and not a.dry_run:
             raise SystemExit(f"{self.work} holds an earlier benchmark: pass --resume to continue it, "
                              f"or choose another --out / --work-dir")  # fmt: skip
+        prev_size = (prev or {}).get("args", {}).get("image_size") or recorder_image_size()
+        if prev is not None and a.resume and prev_size != self.image_size():
+            raise SystemExit(
+                f"{self.work} was run with --image-size {prev_size}, this call has {self.image_size()}: pass the same "
+                "--image-size to --resume (one work dir, one image size)")  # fmt: skip
         if prev is not None and a.resume and (prev.get("args", {}).get("train_arg") or None) != (a.train_arg or None):
             raise SystemExit(
                 f"{self.work} was run with --train-arg {prev['args'].get('train_arg')}, this call has "
@@ -809,6 +831,7 @@ class Benchmark:
             "method_args": {m: self.method_args(m) for m in a.methods},
             "config_files": {m: _rel(self.config_file(m)) for m in a.methods},
             "record_seed": a.record_seed, "eval_seed": a.eval_seed, "episode_length": a.episode_length,
+            "image_size": self.image_size(),
             "eval_episodes_per_cell": (a.eval_episodes if a.protocol == "random" else "one per valid grid point"),
             "ci": "Wilson score interval, 95%",
             "eval_placements": (
