@@ -303,3 +303,27 @@ def test_panda_pair_section_tables_each_task_and_says_whether_rnd_doubles_act_on
     run("rnd_ai", (0, 0), (0, 0))
     run("act", (0, 0), (0, 0))  # both fail everywhere: nothing is separated
     assert "it does on neither task." in "\n".join(w.panda_pair_section())
+
+
+def test_so101_calibration_rows_compare_measured_and_exact_cameras_per_task(tmp_path, monkeypatch):
+    import json
+
+    import benchmarks.write_benchmarks_md as w
+
+    monkeypatch.setattr(w, "RESULTS", tmp_path)
+
+    def run(folder, task, k, n=50):
+        runs = tmp_path / folder / "runs"
+        runs.mkdir(parents=True, exist_ok=True)
+        chunk = {"0:50": {"successes": [True] * k + [False] * (n - k)}}
+        (runs / f"rnd_ai__{task}__n10__seed0.json").write_text(json.dumps({"status": "done", "eval_chunks": chunk}))
+
+    run(w.SO101_FOLDER, "reach-target", 3)
+    run(w.SO101_FOLDER, "pick-cube", 0)
+    assert w.so101_calibration_rows() == []  # no exact-calibration run: nothing to compare
+    run(w.SO101_EXACT_FOLDER, "reach-target", 8)
+    text = "\n".join(w.so101_calibration_rows())
+    # Wilson 95% by hand: 3/50 2.1-16.2%, 0/50 0-7.1%, 8/50 8.3-28.5%; 3/50 - 8/50 = -10 points.
+    assert "| measured by `lerobot-rnd-calibrate` | 3/50 (2-16%) | 0/50 (0-7%) |" in text
+    assert "| MuJoCo's exact | 8/50 (8-29%) | not run yet |" in text
+    assert "Measured against exact: reach-target -10 points." in text
