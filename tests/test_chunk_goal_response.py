@@ -137,3 +137,37 @@ def test_diffusion_policy_chunk_is_the_one_its_own_select_action_plans(toy_datas
     reference = torch.stack([first, *policy._queues[ACTION]], dim=1)  # (draws, n_action_steps, A)
     assert chunk.shape == reference.shape == (2, 4, ds.meta.features["action"]["shape"][0])
     torch.testing.assert_close(chunk, reference)
+
+
+@pytest.fixture(scope="module")
+def two_task_root(tmp_path_factory):
+    """Paired episodes that start from identical observations and go opposite ways (only the task tells them apart)."""
+    from lerobot_rnd.testing import TOY_TASK, record_toy_dataset
+
+    return record_toy_dataset(tmp_path_factory.mktemp("two_tasks") / "toy", n_episodes=2, episode_len=8,
+                              tasks=(TOY_TASK, "move away from the red target"))  # fmt: skip
+
+
+@pytest.mark.parametrize("conditioned", [True, False])
+def test_other_task_feeds_the_same_noise_so_only_the_task_token_can_change_the_chunk(two_task_root, tmp_path,
+                                                                                      conditioned):
+    """--other-task: a policy without task conditioning, fed the other task's string with the same noise, predicts
+    exactly the same chunk (task_effect 0); with conditioning the token changes it. Had the noise differed, the
+    unconditioned policy's effect would not be 0."""
+    _, _, ckpt = saved_policy(two_task_root, tmp_path, task_conditioning=conditioned)
+    out = tmp_path / "cgr.json"
+    assert cgr.main(["--policy-path", str(ckpt), "--dataset-root", str(two_task_root), "--repo-id", "local/toy_reach",
+                     "--frames", "0", "--draws", "2", "--delta-actions", "--other-task", "--out", str(out)]) == 0  # fmt: skip
+    row = json.loads(out.read_text())["rows"][0]
+    assert row["episodes"] == 4 and len(row["other_task"]["slope"]) == len(row["task_effect"]) == 4
+    if conditioned:
+        assert max(row["task_effect"]) > 1e-4
+    else:
+        assert row["task_effect"] == [0.0] * 4 and row["other_task"]["slope"] == row["slope"]
+
+
+def test_other_task_refuses_a_dataset_of_one_task(toy_dataset_root, tmp_path):
+    _, _, ckpt = saved_policy(toy_dataset_root, tmp_path)
+    with pytest.raises(SystemExit):
+        cgr.main(["--policy-path", str(ckpt), "--dataset-root", str(toy_dataset_root), "--repo-id", "local/toy_reach",
+                  "--other-task", "--out", str(tmp_path / "x.json")])  # fmt: skip
