@@ -657,7 +657,32 @@ def panda_pair_section() -> list[str]:
                    "R&D-AI does not meet issue 35's condition (at least twice ACT's success on each task): it does on "
                    + (", ".join(f"`{t}`" for t in separated) if separated else "neither task") + ".")  # fmt: skip
         lines += ["", verdict]
+    lines += pair_open_loop_line(_load(RESULTS / PANDA_PAIR_OPEN_LOOP))
     return lines
+
+
+PANDA_PAIR_OPEN_LOOP = "chunk_goal_response_panda_pair_rnd_ai.json"
+
+
+def pair_open_loop_line(res: dict | None) -> list[str]:
+    """What the task string does to R&D-AI's first chunk on the pair's demos (benchmarks/chunk_goal_response.py
+    --other-task, frame 0): slopes on the demos' motion and the change the task string makes against the spread
+    over draws, per position axis. [] without that JSON."""
+    row = next((r for r in (res or {}).get("rows", []) if r["start_frame"] == 0 and "task_effect" in r), None)
+    if row is None:
+        return []
+    names = res.get("joint_names") or []
+    axes = [i for i, n in enumerate(names) if n in ("dx", "dy", "dz")]
+
+    def fmt(values):
+        return ", ".join(f"{names[i][1:]} {'–' if values[i] is None else f'{values[i]:.2f}'}" for i in axes)
+
+    return ["", (f"Open loop on its {row['episodes']} demos at their first frame ([`{PANDA_PAIR_OPEN_LOOP}`]"
+                 f"(../benchmarks/results/{PANDA_PAIR_OPEN_LOOP}), `benchmarks/chunk_goal_response.py --other-task`), "
+                 f"R&D-AI's first chunk follows the demos' motion with slopes {fmt(row['slope'])} (1: follows, 0: one "
+                 "motion for every scene). Fed the other task's string with the same noise, it moves by "
+                 f"{fmt([round(e, 3) for e in row['task_effect']])} (mean per episode) against a spread over "
+                 f"{res['draws']} draws of {fmt(row['draw_std'])}.")]
 
 
 TABLE_METHODS = {"rnd_ai": "R&D-AI", "act": "ACT", "diffusion": "Diffusion Policy"}

@@ -156,6 +156,18 @@ STATUS: dict[str, tuple[str, str]] = {
                            "button-press-topdown, reach and door-close together (10 demos of each, 3,000 steps), "
                            "evaluated on each task (50 episodes per task, seeds 1000-1049): 83/200, against 173/200 "
                            "for one policy per task; ACT multi-task (no task input), same data and steps: 80/200."),
+    "panda_multitask_pair": (CURRENT, ("Issue 35, in progress: the Panda pair whose tasks share a scene (lift-red-cube, "
+                             "lift-blue-cube: a red and a blue cube in every image; the task names the cube to "
+                             "lift), one policy for both, 10 random demos of each, 3,000 steps, 50 test episodes "
+                             "per task from seed 1000: R&D-AI (task-conditioned) 1/50 and 0/50; ACT multi-task "
+                             "running.")),
+    "chunk_goal_response_panda_pair_rnd_ai.json": (CURRENT, ("Open loop at frame 0 of its 20 demos, the "
+                                                   "panda_multitask_pair R&D-AI checkpoint (4 draws), each observation "
+                                                   "also fed the other task's string with the same noise: its first "
+                                                   "chunk does not follow the demos (slopes x -0.02, y -0.00, z -0.06; "
+                                                   "the one-cube lift-cube checkpoint: 0.87, 0.53, 0.63), and the task "
+                                                   "string moves it by 0.005-0.023 per position axis against a spread "
+                                                   "over draws of 0.19-0.22: the task token barely acts.")),
     "panda_spatial_6000": (CURRENT, ("Issue 33: Panda lift-cube, 8 furthest-point demos, the panda_spatial set-up "
                            "trained 6,000 steps instead of 3,000 (ACT's loss was still falling), the same 27 test "
                            "cells: R&D-AI 22/27 (21/27 at 3,000 steps; loss 0.068), ACT 3/27 (4/27 at 3,000; "

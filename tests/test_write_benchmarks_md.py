@@ -327,3 +327,17 @@ def test_so101_calibration_rows_compare_measured_and_exact_cameras_per_task(tmp_
     assert "| measured by `lerobot-rnd-calibrate` | 3/50 (2-16%) | 0/50 (0-7%) |" in text
     assert "| MuJoCo's exact | 8/50 (8-29%) | not run yet |" in text
     assert "Measured against exact: reach-target -10 points." in text
+
+
+def test_pair_open_loop_line_reads_frame_zero_of_an_other_task_run():
+    import benchmarks.write_benchmarks_md as w
+
+    assert w.pair_open_loop_line(None) == []
+    names = ["dx", "dy", "dz", "drx", "dry", "drz", "gripper"]
+    plain = {"joint_names": names, "draws": 4, "rows": [{"start_frame": 0, "episodes": 20, "slope": [0.5] * 7}]}
+    assert w.pair_open_loop_line(plain) == []  # a run without --other-task says nothing about the task string
+    row = {"start_frame": 0, "episodes": 20, "slope": [0.87, None, -0.061, 0, 0, 0.3, None],
+           "task_effect": [0.0053, 0.0069, 0.0225, 0, 0, 0.04, 0], "draw_std": [0.224, 0.186, 0.19, 0, 0, 1.1, 0]}
+    text = w.pair_open_loop_line({**plain, "rows": [{**row, "start_frame": 8}, row]})[1]
+    assert "its 20 demos" in text and "slopes x 0.87, y –, z -0.06 (1:" in text
+    assert "it moves by x 0.01, y 0.01, z 0.02 (mean" in text and "over 4 draws of x 0.22, y 0.19, z 0.19." in text
