@@ -7,6 +7,7 @@ Vosylius, Seo, Uruç and James, RSS 2024 (https://arxiv.org/abs/2405.18196).
 Shapes: B batch, H observation steps, T future steps, F = H + T frames, C cameras, h x w network image size.
 """
 
+import contextvars
 import logging
 import warnings
 from collections import deque
@@ -51,6 +52,11 @@ from lerobot_rnd.tasks import TASK_KEY, resolve_task_conditioning, task_indices
 
 logger = logging.getLogger(__name__)
 
+# True while `RnDPolicy.from_pretrained` builds the policy: LeRobot's `make_policy` passes the dataset's metadata to
+# the loader too (`lerobot-train --resume=true`, scripts with a dataset), and the statistics the checkpoint already
+# holds must not be estimated again from the dataset (tens of seconds on a CPU) only to be overwritten.
+_LOADING_PRETRAINED: contextvars.ContextVar[bool] = contextvars.ContextVar("rnd_loading_pretrained", default=False)
+
 
 class RnDPolicy(PreTrainedPolicy):
     """Render and Diffuse: diffusion over actions drawn into the camera images as renders of the gripper."""
@@ -84,7 +90,7 @@ class RnDPolicy(PreTrainedPolicy):
             check_hub_push_ready(config)
             install_column_first_queries()  # an rnd training run reads its dataset column first (dataset_query.py)
         self.model = RnDModel(config, embodiment_meshes)
-        if dataset_meta is not None:
+        if dataset_meta is not None and not _LOADING_PRETRAINED.get():  # a checkpoint brings its own statistics
             self.model.fit_statistics(dataset_meta)
         self._queues = None
         self.reset()
@@ -108,7 +114,11 @@ class RnDPolicy(PreTrainedPolicy):
                     ", ".join(migrated),
                     ", ".join(f"{k}={getattr(config, k)!r}" for k in migrated),
                 )
-        return super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
+        loading = _LOADING_PRETRAINED.set(True)
+        try:
+            return super().from_pretrained(pretrained_name_or_path, config=config, **kwargs)
+        finally:
+            _LOADING_PRETRAINED.reset(loading)
 
     @classmethod
     def _load_as_safetensor(cls, model, model_file: str, map_location: str, strict: bool):

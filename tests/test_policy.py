@@ -78,6 +78,26 @@ def test_save_pretrained_round_trip_is_bit_identical(toy_dataset_root, tmp_path)
         assert torch.equal(buf, reloaded.model.state_dict()[name]), name
 
 
+def test_loading_with_the_dataset_keeps_the_checkpoints_statistics_and_does_not_estimate_them(toy_dataset_root,
+                                                                                             tmp_path, monkeypatch):
+    """LeRobot's make_policy passes the dataset's metadata to from_pretrained (`lerobot-train --resume=true`): the
+    checkpoint's statistics are loaded, not estimated again from the dataset first; a policy built from scratch
+    still estimates them."""
+    from lerobot_rnd.modeling_rnd import RnDModel, RnDPolicy
+
+    policy, meta = make_policy(toy_dataset_root)
+    policy.model.action_stats.set(policy.model.action_stats.min - 0.5, policy.model.action_stats.max + 0.5)
+    policy.save_pretrained(tmp_path)  # statistics no estimate from the dataset would give
+    calls = []
+    monkeypatch.setattr(RnDModel, "fit_statistics", lambda self, dataset_meta: calls.append(dataset_meta))
+    reloaded = RnDPolicy.from_pretrained(tmp_path, dataset_meta=meta)
+    assert calls == []
+    for name, buf in policy.model.state_dict().items():
+        assert torch.equal(buf, reloaded.model.state_dict()[name]), name
+    RnDPolicy(reloaded.config, dataset_meta=meta)  # from scratch, after a load: estimated as before
+    assert calls == [meta]
+
+
 def _lerobot_train(tmp_path, root, *extra, steps=2):
     out = tmp_path / "train"
     cmd = [
