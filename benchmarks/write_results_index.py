@@ -159,8 +159,9 @@ STATUS: dict[str, tuple[str, str]] = {
     "panda_multitask_pair": (CURRENT, ("Issue 35, in progress: the Panda pair whose tasks share a scene (lift-red-cube, "
                              "lift-blue-cube: a red and a blue cube in every image; the task names the cube to "
                              "lift), one policy for both, 10 random demos of each, 3,000 steps, 50 test episodes "
-                             "per task from seed 1000: R&D-AI (task-conditioned) 1/50 and 0/50; ACT multi-task "
-                             "running.")),
+                             "per task from seed 1000: R&D-AI (task-conditioned) 1/50 and 0/50; ACT multi-task (no "
+                             "task input) 0/50 and 0/50. Neither method learns the pair at this budget; the "
+                             "single-task control (R&D-AI on lift-red-cube alone) is not run yet.")),
     "chunk_goal_response_panda_pair_rnd_ai.json": (CURRENT, ("Open loop at frame 0 of its 20 demos, the "
                                                    "panda_multitask_pair R&D-AI checkpoint (4 draws), each observation "
                                                    "also fed the other task's string with the same noise: its first "

@@ -299,7 +299,13 @@ def test_panda_pair_section_tables_each_task_and_says_whether_rnd_doubles_act_on
     assert "| ACT | 20/50 (28-54%) | 5/50 (4-21%) | 25/100 (18-34%) | 0.100 |" in text
     assert "does not meet" in text and "it does on `lift-blue-cube`." in text
     run("act", (10, 5), (3, 2))  # red 15/50: 60% is exactly twice 30%, which counts
-    assert "R&D-AI separates the tasks" in "\n".join(w.panda_pair_section())
+    text = "\n".join(w.panda_pair_section())
+    assert "R&D-AI separates the tasks" in text and "overlap" not in text  # 30/50 (46-72%) against 15/50 (19-44%)
+    run("rnd_ai", (1, 0), (0, 0))
+    run("act", (0, 0), (0, 0))  # 1/50 (0.4-10.5%) against 0/50 (0-7.1%): twice, literally, within the intervals
+    text = "\n".join(w.panda_pair_section())
+    assert "it does on `lift-red-cube`." in text
+    assert "On `lift-red-cube` (1/50 against 0/50) the two Wilson intervals overlap" in text
     run("rnd_ai", (0, 0), (0, 0))
     run("act", (0, 0), (0, 0))  # both fail everywhere: nothing is separated
     assert "it does on neither task." in "\n".join(w.panda_pair_section())
