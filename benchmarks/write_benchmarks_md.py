@@ -615,6 +615,7 @@ def multitask_section(one_step: dict | None) -> list[str]:
 # Issue 35's Panda pair: one scene with a red and a blue cube; only the task string says which cube to lift.
 PANDA_PAIR_TASKS = ("lift-red-cube", "lift-blue-cube")
 PANDA_PAIR_FOLDER = "panda_multitask_pair"
+PANDA_PAIR_SINGLE_FOLDER = "panda_pair_single"  # R&D-AI on one task of the pair at a time, 10 demos, 3,000 steps
 
 
 def panda_pair_section() -> list[str]:
@@ -647,6 +648,14 @@ def panda_pair_section() -> list[str]:
         loss = final_loss(PANDA_PAIR_FOLDER, method, PANDA_PAIR_TASKS) if got else None
         text.append("–" if loss is None else f"{loss:.3f}")
         lines.append(f"| {TABLE_METHODS[method]} | " + " | ".join(text) + " |")
+    for task in PANDA_PAIR_TASKS:  # the single-task controls: R&D-AI trained on one task of the pair alone
+        alone = run_file_cells(PANDA_PAIR_SINGLE_FOLDER, "rnd_ai", (task,)).get(task)
+        if alone:
+            loss = final_loss(PANDA_PAIR_SINGLE_FOLDER, "rnd_ai", (task,))
+            lines.append(f"| R&D-AI trained on `{task}` alone ([`{PANDA_PAIR_SINGLE_FOLDER}`](../benchmarks/results/"
+                         f"{PANDA_PAIR_SINGLE_FOLDER}/)) | "
+                         + " | ".join(cell(*alone) if t == task else "–" for t in PANDA_PAIR_TASKS)
+                         + f" | – | {'–' if loss is None else f'{loss:.3f}'} |")  # fmt: skip
     rnd, act = cells["rnd_ai"], cells["act"]
     if rnd and act:
         # "At least twice ACT's success" on every task; a task both methods fail is not separated.

@@ -309,6 +309,14 @@ def test_panda_pair_section_tables_each_task_and_says_whether_rnd_doubles_act_on
     run("rnd_ai", (0, 0), (0, 0))
     run("act", (0, 0), (0, 0))  # both fail everywhere: nothing is separated
     assert "it does on neither task." in "\n".join(w.panda_pair_section())
+    single = tmp_path / w.PANDA_PAIR_SINGLE_FOLDER / "runs"
+    single.mkdir(parents=True)
+    (single / "rnd_ai__lift-red-cube__n10__seed0.json").write_text(json.dumps(
+        {"status": "done", "eval_chunks": {"0:50": {"successes": [True] * 8 + [False] * 42}},
+         "loss_curve": [[3000, 0.0712]]}))  # fmt: skip
+    text = "\n".join(w.panda_pair_section())  # Wilson 95% for 8/50: 8.3-28.5%
+    assert "| R&D-AI trained on `lift-red-cube` alone (" in text and ") | 8/50 (8-29%) | – | – | 0.071 |" in text
+    assert "trained on `lift-blue-cube` alone" not in text  # not run: no row
 
 
 def test_so101_calibration_rows_compare_measured_and_exact_cameras_per_task(tmp_path, monkeypatch):
