@@ -161,9 +161,14 @@ STATUS: dict[str, tuple[str, str]] = {
                              "lift), one policy for both, 10 random demos of each, 3,000 steps, 50 test episodes "
                              "per task from seed 1000: R&D-AI (task-conditioned) 1/50 and 0/50; ACT multi-task (no "
                              "task input) 0/50 and 0/50. Neither method learns the pair at this budget; the "
-                             "single-task control (R&D-AI on lift-red-cube alone) is not run yet. ACT's training "
+                             "single-task control, R&D-AI on lift-red-cube alone (panda_pair_single), lifts the red "
+                             "cube in 3/50. ACT's training "
                              "time (62.7 min) includes about 13 minutes in which an open-loop diagnostic shared the "
                              "2 cores (median logged update 0.97 s against about 0.9 s alone).")),
+    "panda_pair_single": (CURRENT, ("Issue 35: the Panda pair's single-task control, R&D-AI trained on lift-red-cube "
+                          "alone (10 random demos, the two-cube scene, 3,000 steps), 50 test episodes from seed 1000: "
+                          "3/50 (loss 0.166). The two-cube scene is not learned from 10 demos even without a second "
+                          "task; the multi-task policy's 1/50 on this task is within the intervals of it.")),
     "chunk_goal_response_panda_pair_rnd_ai.json": (CURRENT, ("Open loop at frame 0 of its 20 demos, the "
                                                    "panda_multitask_pair R&D-AI checkpoint (4 draws), each observation "
                                                    "also fed the other task's string with the same noise: its first "
