@@ -47,6 +47,15 @@ def recorder_image_size() -> int:
     return RecordSettings.image_size
 
 
+def put_train_slice(st: dict, entry: dict) -> None:
+    """Append a training slice's record to ``st["train_slices"]``, replacing that slice's provisional record (the
+    same start step, written at its last checkpoint) if there is one."""
+    slices = st.setdefault("train_slices", [])
+    if slices and slices[-1].get("provisional") and slices[-1]["start_step"] == entry["start_step"]:
+        slices.pop()
+    slices.append(entry)
+
+
 def checkpoint_step(ckroot: Path) -> int:
     """The training step of a run's last checkpoint (``ckroot/last``; lerobot-train saves it in the training state
     beside the model), 0 without one."""
@@ -110,14 +119,19 @@ class Benchmark:
         tasks = unit_tasks(task)
         if len(tasks) > 1:
             task = f"mt{len(tasks)}-{hashlib.sha1(','.join(tasks).encode()).hexdigest()[:8]}"
-        size = self.image_size()
+        other = self.other_image_size()
         name = (f"{self.suite['dataset_prefix']}_{task}_{self.placements_mode()}_s{a.record_seed}_n{n}"
-                + ("" if size == recorder_image_size() else f"_img{size}"))  # fmt: skip
+                + (f"_img{other}" if other else ""))  # fmt: skip
         return self.data_dir / name, f"local/{name}"
 
     def image_size(self) -> int:
         """The side of the camera images in pixels: --image-size, else the recorder's default."""
         return self.a.image_size or recorder_image_size()
+
+    def other_image_size(self) -> int | None:
+        """--image-size where it differs from the recorder's default (it then names the datasets and reaches the
+        recorder and R&D), else None: the datasets and commands of a run without the flag."""
+        return None if self.image_size() == recorder_image_size() else self.image_size()
 
     def make_env(self, task: str):
         """The suite's env of ``task`` (placements and validity; nothing is rendered)."""
@@ -154,12 +168,11 @@ class Benchmark:
                         shutil.copytree(prev_root, root)
                     resume = True
                 self.need(60 + 8.0 * (n - (have if resume else 0)), f"recording {root.name}")
-                size = self.image_size()
+                other = self.other_image_size()
                 argv = tool_argv("lerobot-rnd-record", a.launcher) + list(self.suite["record_args"]) + [
                     "--task", task, "--episodes", str(n), "--root", str(root), "--repo-id", repo_id,
                     "--placements", mode, "--seed", str(a.record_seed),
-                ] + (["--image-size", str(size)] if size != recorder_image_size() else [])  # fmt: skip
-                argv += ["--resume"] if resume else []
+                ] + (["--image-size", str(other)] if other else []) + (["--resume"] if resume else [])  # fmt: skip
                 r = run_logged(argv, self.work / "logs" / f"record_{root.name}.log", env=self.env(),
                                dry_run=a.dry_run)  # fmt: skip
                 if r.rc != 0:
@@ -355,8 +368,8 @@ class Benchmark:
         fam = method_family(method)
         per_scale = SCALES[self.a.scale]["method_args"]
         args = list(COMMON_METHOD_ARGS[fam]) + list(per_scale[fam]) + list(per_scale.get(method, []))
-        if fam == "rnd" and self.image_size() != recorder_image_size():  # ACT and DP take the dataset's images as they are
-            args.append(f"--policy.image_size=[{self.image_size()},{self.image_size()}]")
+        if fam == "rnd" and self.other_image_size():  # ACT and DP take the dataset's images as they are
+            args.append(f"--policy.image_size=[{self.other_image_size()},{self.other_image_size()}]")
         for spec in self.a.train_arg or []:
             who, _, arg = spec.partition(":")
             if who in ("all", method, fam):
@@ -412,10 +425,7 @@ class Benchmark:
             loop_s = (time.time() - r.marks["train_loop_start"]) if "train_loop_start" in r.marks else None
             if loop_s is not None:
                 loop_s = min(loop_s, r.wall_s)
-            slices = st.setdefault("train_slices", [])
-            if slices and slices[-1].get("provisional") and slices[-1]["start_step"] == step:
-                slices.pop()  # this slice's record up to its last checkpoint, replaced by the final one
-            slices.append({
+            put_train_slice(st, {
                 "start_step": step, "end_step": end_step, "wall_s": round(r.wall_s, 2),
                 "loop_s": None if loop_s is None else round(loop_s, 2), "rc": r.rc, "stopped": r.stopped,
             })  # fmt: skip
@@ -444,11 +454,8 @@ class Benchmark:
             if step > seen["step"]:
                 seen["step"] = step
                 now = time.time()
-                slices = st.setdefault("train_slices", [])
-                if slices and slices[-1].get("provisional") and slices[-1]["start_step"] == start_step:
-                    slices.pop()
                 loop = now - marks["train_loop_start"] if "train_loop_start" in marks else None
-                slices.append({"start_step": start_step, "end_step": step, "wall_s": round(now - t0, 2),
+                put_train_slice(st, {"start_step": start_step, "end_step": step, "wall_s": round(now - t0, 2),
                                "loop_s": None if loop is None else round(loop, 2), "rc": None,
                                "stopped": None, "provisional": True})  # fmt: skip
                 _write_json(run_json, st)
