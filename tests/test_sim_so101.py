@@ -95,6 +95,36 @@ def test_reset_places_the_task_objects(env):
         env.reset(options={"placement": [0.9, 0.0, 0.0]})
 
 
+def _front_pixels(env, points_world):
+    """Pixels of world points in the front image, through the env's exact front camera (K, T_world_cam)."""
+    cam = env.embodiment().cameras["observation.images.front"]
+    T_cam_world = np.linalg.inv(np.asarray(cam.T_world_cam, dtype=float))
+    p = (T_cam_world @ np.c_[points_world, np.ones(len(points_world))].T)[:3]
+    uv = np.asarray(cam.K, dtype=float) @ p
+    return np.round(uv[:2] / uv[2]).astype(int).T
+
+
+def test_reach_targets_post_shows_where_and_how_high_the_ball_is():
+    """The ball stands on a dark post from the table (visual only): the post's foot on the table and points along
+    it are dark in the front image, the table just beside it is not; pick-cube hides it with the ball."""
+    env = RnDSO101Env("reach-target", observation_height=240, observation_width=320)
+    dark = lambda img, uv: img[uv[1], uv[0]].max() < 90  # the post (0.2, 0.2, 0.22); the table ~0.6-0.76
+    for x, y, z in ([0.25, 0.08, 0.14], [0.16, -0.1, 0.05]):
+        obs, _ = env.reset(options={"placement": [x, y, z]})
+        img = obs["pixels"]["front"]
+        along = [[x, y, 0.004]] + [[x, y, f * (z - 0.012)] for f in (0.3, 0.6, 0.9)]
+        beside = [[x, y + 0.03, f * z] for f in (0.0, 0.5)]
+        assert all(dark(img, uv) for uv in _front_pixels(env, np.array(along))), (x, y, z)
+        assert not any(dark(img, uv) for uv in _front_pixels(env, np.array(beside))), (x, y, z)
+        # the post gives no contact: the arm's physics is the same as without it
+        g = env.model.geom("target_post").id
+        assert env.model.geom_contype[g] == 0 and env.model.geom_conaffinity[g] == 0
+    env.close()
+    pick = RnDSO101Env("pick-cube", observation_height=48, observation_width=64)
+    assert pick.model.geom_rgba[pick.model.geom("target_post").id, 3] == 0.0
+    pick.close()
+
+
 @pytest.mark.parametrize("task", ["reach-target", "pick-cube"])
 def test_experts_solve_the_tasks_in_joint_space(task):
     env = RnDSO101Env(task, observation_height=48, observation_width=64)

@@ -116,6 +116,15 @@ def _fmt_s(x) -> str:
     return f"{x:.0f} s" if x < 600 else f"{x / 60:.1f} min"
 
 
+def _episodes_per_cell(settings: dict) -> str:
+    """results.md's episodes per cell: a count (random protocol) or the spatial protocol's 'one per valid grid
+    point', as a phrase."""
+    n = settings["eval_episodes_per_cell"]
+    if isinstance(n, str):
+        return n.replace("one per", "one episode per", 1)
+    return f"{n} episodes per cell"
+
+
 def markdown_report(res: dict) -> str:
     b, runs, st = res["benchmark"], res["runs"], res["settings"]
     cells = [(t, n) for t in b["tasks"] for n in b["demos"]]
@@ -130,8 +139,8 @@ def markdown_report(res: dict) -> str:
         "",
         f"Success rate, Wilson 95% interval, (successes / episodes). Training seeds {b['seeds']}; "
         f"{st['matched']['steps']} steps of batch {st['matched']['batch_size']}; demos recorded with seed "
-        f"{st['record_seed']}; evaluation seeds from {st['eval_seed']} ({st['eval_episodes_per_cell']} episodes "
-        f"per cell, {st['episode_length']}-step episodes).",
+        f"{st['record_seed']}; evaluation seeds from {st['eval_seed']} ({_episodes_per_cell(st)}, "
+        f"{st['episode_length']}-step episodes).",
     ]
     if b.get("multitask"):
         lines += ["", f"**Multi-task** (`--multitask`): per method and demo count, one policy trained on all "

@@ -3,7 +3,8 @@
 ``gym.make("gym_rnd_so101/pick-cube")`` (registered when this module is imported), or
 ``lerobot-eval --env.type=rnd_so101 --env.task=pick-cube``. Tasks (:data:`SO101_TASKS`):
 
-- ``reach-target``: touch a green ball (random position in front of the arm) with the gripper: success when the
+- ``reach-target``: touch a green ball (random position in front of the arm, on a thin dark post from the table, so
+  the front camera sees where and how high it is) with the gripper: success when the
   EE frame's origin (the static jaw's inner face, 6 mm behind its tip) is within :data:`REACH_SUCCESS_RADIUS`
   (2 cm) of the ball's centre.
 - ``pick-cube``: a 3 cm red cube at a random position and yaw; success = cube centre more than
@@ -54,6 +55,7 @@ from lerobot_rnd.sim.so101_scene import (
     build_model,
     check_task,
     hide,
+    set_target_post,
 )
 
 GYM_NAMESPACE = "gym_rnd_so101"
@@ -173,6 +175,7 @@ class RnDSO101Env(RnDMuJoCoEnv):
         else:
             d.qpos[self._cube : self._cube + 3] = [-0.3, 0.3, CUBE_HALF]  # out of sight
             self.model.body_pos[self._target] = vec
+            set_target_post(self.model, float(vec[2]))
 
     # ------------------------------------------------------------------ gym API
     def reset(self, seed: int | None = None, options: dict | None = None):

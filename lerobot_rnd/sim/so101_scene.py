@@ -42,6 +42,10 @@ WRIST_CAMERA_FOVY = 70.0
 CUBE_HALF = 0.015
 CUBE_MASS = 0.03
 TARGET_RADIUS = 0.012
+#: reach-target's stand: a thin dark post from the table up to the ball (visual only). From the front camera alone a
+#: floating ball is ambiguous along the viewing ray (x and height trade off, the ball's size the only cue); the
+#: post's foot on the table fixes x, y and its length the height.
+TARGET_POST_RADIUS = 0.004
 
 #: a calibration session's board (its OpenCV frame: z into the table, so x along world +x, y along world -y),
 #: lying in front of the arm
@@ -163,6 +167,9 @@ def build_model(offscreen_size: tuple[int, int] = (480, 640), board=None, T_worl
     target = wb.add_body(name="target", pos=[0.2, 0.0, 0.1])
     target.add_geom(name="target", type=mujoco.mjtGeom.mjGEOM_SPHERE, size=[TARGET_RADIUS, 0, 0],
                     rgba=[0.1, 0.75, 0.2, 1.0], contype=0, conaffinity=0)  # fmt: skip
+    # sized to the ball's height at each reset (set_target_post); visual only, so the gripper never hits it
+    target.add_geom(name="target_post", type=mujoco.mjtGeom.mjGEOM_CYLINDER, size=[TARGET_POST_RADIUS, 0.05, 0],
+                    pos=[0.0, 0.0, -0.05 - TARGET_RADIUS], rgba=[0.2, 0.2, 0.22, 1.0], contype=0, conaffinity=0)  # fmt: skip
     if board is not None:
         _add_board(spec, board, np.asarray(T_world_board, dtype=np.float64))
     model = spec.compile()
@@ -191,6 +198,15 @@ def _add_board(spec, board, T_world_board: np.ndarray) -> None:
     spec.worldbody.add_geom(name="charuco_board", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[w / 2, h / 2, 0.01],
                             pos=T[:3, 3] + [0.0, 0.0, 0.0005], quat=[qw, x, y, z], material="charuco_board",
                             contype=0, conaffinity=0)  # fmt: skip
+
+
+def set_target_post(model, height: float) -> None:
+    """Stretches reach-target's post from the table (z = 0) to the bottom of the ball whose centre is ``height``
+    above the table (the target body's frame is at the ball's centre)."""
+    g = model.geom("target_post").id
+    half = max(height - TARGET_RADIUS, 1e-3) / 2.0
+    model.geom_size[g, 1] = half
+    model.geom_pos[g] = [0.0, 0.0, -TARGET_RADIUS - half]
 
 
 def hide(model, body: str) -> None:
