@@ -68,81 +68,12 @@ STATUS: dict[str, tuple[str, str]] = {
                      "re-recorded with the expert that keeps the wrist roll); pick-cube R&D-AI 0/50 (it reaches "
                      "towards the cube, never lifts it), ACT 1/50; Diffusion Policy not run. 20 demos: "
                      "reach-target R&D-AI 3/50, ACT not run yet."),
-    "chunk_goal_response_so101_reach_rnd_ai.json": (CURRENT, "Open loop on its 10 reach-target demos, the so101_random "
-                                                    "R&D-AI checkpoint: how much its action chunk follows each "
-                                                    "demo's motion (slope 1) from frames 0, 8 and 16. At frame 0, "
-                                                    "where only the images tell the demos apart, the shoulder pan "
-                                                    "follows with slope 0.20; from frame 8, once the arm has moved, "
-                                                    "0.77."),
-    "chunk_goal_response_so101_reach_rnd_ai_still.json": (CURRENT, "The same with the current frame fed as the past "
-                                                          "one too (no motion in the history): the same slopes (pan "
-                                                          "0.20, 0.76, 0.76), so the policy does not continue the "
-                                                          "motion it sees; it follows the demos once the arm's pose "
-                                                          "differs, and barely from the images alone."),
-    "chunk_goal_response_so101_reach_act.json": (CURRENT, "The same on the so101_random ACT reach-target checkpoint "
-                                                 "(deterministic, 1 draw): its chunk follows the demos from frame 0 "
-                                                 "(shoulder pan slope 1.18, 1.06 at 8, 1.02 at 16), where R&D-AI's "
-                                                 "follows with 0.20; yet ACT also fails in closed loop (5/50)."),
     "chunk_goal_response_so101_pick_rnd_ai.json": (CURRENT, "The same on the pick-cube R&D-AI checkpoint (frames 0, 8, "
                                                    "16, 32): shoulder pan slope 0.09 at frame 0, 0.72 at 8, 0.89 at "
                                                    "16; the first chunk barely depends on where the cube is."),
-    "chunk_goal_response_so101_reach_rnd_ai_image_only.json": (CURRENT, "The reach-target R&D-AI checkpoint sampled "
-                                                               "without its final action-space pass (the image-space "
-                                                               "prediction alone): shoulder pan slope -0.15 at frame "
-                                                               "0 and 0.21 at frame 8, against 0.20 and 0.77 with it: "
-                                                               "on the SO-101 the action head does what following "
-                                                               "there is."),
-    "trace_so101_reach_rnd_ai.json": (CURRENT, "Closed loop on validation seeds 100-119, the so101_random R&D-AI "
-                                       "reach-target checkpoint: 1/20; the gripper's displacement at step 30 does not "
-                                       "depend on the goal (slopes x -0.07, y 0.00, z -0.05; the demos 0.76-0.79) and "
-                                       "it ends on the table (median final height 7 mm, the targets are 4-15 cm up; "
-                                       "median miss 16 cm)."),
-    "trace_so101_reach_act.json": (CURRENT, "The same for the so101_random ACT reach-target checkpoint: 1/20; it "
-                                   "turns towards the goal (slopes x 0.23, y 0.32) but does not descend (z 0.02; "
-                                   "median final height 12 cm, median miss 8 cm)."),
-    "chunk_goal_response_so101_reach_rnd_ai_chunk16.json": (CURRENT, "A validation run: R&D-AI reach-target trained "
-                                                             "with 16-step chunks (8 executed), otherwise as "
-                                                             "so101_random (`run_benchmark.py --suite so101 --scale "
-                                                             "cpu --demos 10 --steps 3000 --tasks reach-target "
-                                                             "--methods rnd_ai --train-only --train-arg "
-                                                             "rnd:--policy.chunk_size=16 --out "
-                                                             "outputs/validation/so101_chunk16`). On its demos its "
-                                                             "first chunk now follows the goal (shoulder pan slope "
-                                                             "1.22 at frame 0, sampling spread 0.6 degrees against "
-                                                             "1.2 with 8-step chunks)."),
-    "trace_so101_reach_rnd_ai_chunk16.json": (CURRENT, "That 16-step checkpoint in closed loop on validation seeds "
-                                               "100-119: still 1/20 and still blind to where the goal is across "
-                                               "(slopes x 0.05, y -0.04; z 0.28): fitting the demos' first chunk "
-                                               "did not make it generalise to new placements, so the SO-101 config "
-                                               "keeps 8-step chunks."),
-    "trace_so101_reach_rnd_ai_n20.json": (CURRENT, "The so101_random R&D-AI reach-target checkpoint trained on 20 "
-                                           "demos, closed loop on validation seeds 100-119: 1/20, still blind to "
-                                           "the goal (slopes x 0.03, y 0.07, z 0.12) and ending on the table "
-                                           "(median final height 8 mm): twice the demos did not change it."),
-    "trace_so101_reach_rnd_ai_p16.json": (CURRENT, "A validation run: R&D-AI reach-target (10 demos) trained with "
-                                           "16-px patches (run_benchmark.py --suite so101 --scale cpu --tasks "
-                                           "reach-target --demos 10 --methods rnd_ai --steps 3000 --train-only "
-                                           "--train-arg rnd_ai:--policy.patch_size=16), closed loop on validation "
-                                           "seeds 100-119: 3/20 (32 px: 1/20), still blind to the goal (slopes x "
-                                           "0.14, y -0.05, z -0.13; median miss 18 cm), no longer ending on the "
-                                           "table (median final height 9 cm): the SO-101 config keeps 32-px "
-                                           "patches, the test seeds were not run."),
-    "trace_so101_reach_rnd_ai_joints.json": (CURRENT, ("A validation run: R&D-AI reach-target (10 demos) denoising "
-                                              "the joint targets (run_benchmark.py --suite so101 --scale cpu --tasks "
-                                              "reach-target --demos 10 --methods rnd_ai --steps 3000 --train-only "
-                                              "--train-arg rnd_ai:--policy.diffusion_space=joints --out "
-                                              "outputs/diag/so101_joints --work-dir outputs/diag/so101_joints_work; "
-                                              "the JSON's command names the outputs/diag path it was written to), "
-                                              "closed loop on validation seeds 100-119: 2/20 (gripper poses: 1/20), "
-                                              "still blind to the goal (slopes x -0.14, y 0.02, z -0.24; median "
-                                              "miss 12 cm against 16), no longer ending on the table (median final "
-                                              "height 8 cm): the SO-101 config keeps diffusing gripper poses, the "
-                                              "test seeds were not run.")),
-    "trace_so101_reach_rnd_ai_ikw0.1.json": (CURRENT, "The so101_random R&D-AI reach-target checkpoint (10 demos) "
-                                              "with IK orientation weight 0.1 instead of 1 (set at inference only), "
-                                              "closed loop on validation seeds 100-119: 0/20, slopes about 0, ending "
-                                              "on the table (median 7 mm), the same misses as weight 1: the IK's "
-                                              "trade of position for unreachable rotation is not why it drifts."),
+    "so101_reach_ray.json": (CURRENT, "SO-101 reach-target's balls on one viewing ray of the front camera, floating "
+                             "and on the post: 19 cm apart yet on the same pixel, 7.0 against 12.7 px wide at 128 "
+                             "px; the post's length tells them apart (docs/images/so101_reach_ray.png)."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "
@@ -303,6 +234,14 @@ STATUS: dict[str, tuple[str, str]] = {
                                "demo, one way or the other by the side of the ball; the policy fitted the demos on "
                                "their own frames (chunk_goal_response.json) but reached no ball. The expert now "
                                "keeps the roll (see its NOTE.md); the demos were re-recorded."),
+    "so101_reach_floating_ball": (ARCHIVED, "SO-101 reach-target with the ball floating (10 demos, measured cameras, "
+                                  "3,000 steps, 50 test episodes from seed 1000): R&D-AI 3/50, ACT 5/50; 20 demos "
+                                  "R&D-AI 3/50; with every trace and open-loop diagnostic of those checkpoints and "
+                                  "of the variants tried on that task (16-px patches, 16-step chunks, joint-space "
+                                  "diffusion, IK weight 0.1). Superseded: from the front camera balls 19 cm apart on "
+                                  "one viewing ray fell on the same pixel, only their size (7-13 px) told them "
+                                  "apart (so101_reach_ray.json), so no policy could place the goal. The ball now "
+                                  "stands on a post; see its NOTE.md."),
     "so101_ik_weight_gripper50": (ARCHIVED, "First SO-101 R&D-AI checkpoints (reach-target, pick-cube; 10 demos, "
                                   "3,000 steps) per IK orientation weight 1 / 0.1 on validation seeds 100-129: 2/30 "
                                   "and 2/30, 0/30 and 0/30. Superseded: they read the demos' gripper with a fixed "
