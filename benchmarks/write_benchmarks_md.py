@@ -736,7 +736,9 @@ def so101_section() -> list[str]:
         "",
         "Random demos, 3,000 training steps, 50 test episodes from seed 1000 (Wilson 95% intervals); "
         f"[benchmarks/results/{SO101_FOLDER}](../benchmarks/results/{SO101_FOLDER}/results.md), "
-        "`policies_config/so101/`. What the failures show: [docs/SO101.md](SO101.md).",
+        "`policies_config/so101/`. What the failures show: [docs/SO101.md](SO101.md). reach-target's ball stands on "
+        "a post that shows where it is; the runs on the floating ball, which the front camera could not place, are "
+        "archived (listed in [INDEX.md](../benchmarks/results/INDEX.md)).",
         "",
         *table,
         *so101_calibration_rows(),

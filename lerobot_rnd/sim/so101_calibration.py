@@ -59,6 +59,7 @@ def record_session(root: str | Path, n_poses: int = 30, image_size: int = 256, s
 
     from lerobot_rnd.sim.record import dataset_features
     from lerobot_rnd.sim.so101_env import ACTION_NAMES, DEFAULT_CAMERAS, SO101_FPS, STATE_NAMES, RnDSO101Env
+    from lerobot_rnd.sim.so101_scene import hide
 
     root = Path(root)
     if root.exists():
@@ -69,7 +70,7 @@ def record_session(root: str | Path, n_poses: int = 30, image_size: int = 256, s
     ds = LeRobotDataset.create(repo_id=repo_id, fps=SO101_FPS, features=features, root=root,
                                robot_type="so101_follower", use_videos=False)  # fmt: skip
     obs, _ = env.reset(options={"placement": [0.2, 0.0, 0.5 * (0.03 + 0.16)]})
-    env.model.geom_rgba[env.model.geom("target").id, 3] = 0.0  # no ball in a calibration session
+    hide(env.model, "target")  # no ball, nor its post, in a calibration session
     q = env.joints()
     frames = 0
     for target in tqdm(session_joint_targets(n_poses, seed), desc="calibration poses", leave=False):
