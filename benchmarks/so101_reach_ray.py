@@ -39,12 +39,10 @@ def ray_through_range_centre(cam, low: np.ndarray, high: np.ndarray) -> tuple[np
     return origin + t_in * direction, origin + t_out * direction
 
 
-def project(cam, point_world: np.ndarray, radius: float) -> tuple[np.ndarray, float]:
-    """Pixel (u, v) of a world point and the diameter in pixels of a ball of ``radius`` there."""
-    p = np.linalg.inv(np.asarray(cam.T_world_cam, dtype=np.float64)) @ np.r_[point_world, 1.0]
-    K = np.asarray(cam.K, dtype=np.float64)
-    uv = (K @ p[:3])[:2] / p[2]
-    return uv, float(2 * radius * K[0, 0] / p[2])
+def ball_in_image(cam, point_world: np.ndarray, radius: float) -> tuple[np.ndarray, float]:
+    """Pixel (u, v) of a ball's centre (world point) and its diameter in pixels (the camera's pinhole model)."""
+    uv, depth = cam.project(point_world[None])
+    return uv[0].numpy(), float(2 * radius * cam.K[0, 0] / depth[0])
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -74,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
             env.model.geom_rgba[post, 3] = 1.0 if shown else 0.0
             obs, _ = env.reset(options={"placement": ball.tolist()})
             pair.append(obs["pixels"]["front"])
-        uv, diameter = project(cam, ball, TARGET_RADIUS)
+        uv, diameter = ball_in_image(cam, ball, TARGET_RADIUS)
         rows.append({"ball_world": np.round(ball, 4).tolist(), "pixel_uv": np.round(uv, 1).tolist(),
                      "diameter_px": round(diameter, 1)})  # fmt: skip
         images.append(pair)

@@ -357,3 +357,11 @@ def test_demo_yaw_labels_of_nearby_demos_are_stacked_not_printed_over_each_other
     y = [0.10, 0.11, 0.90, 0.10, 0.10]
     offsets = reports._label_offsets(x, y, [0.0, 1.0, 0.0, 1.0])
     assert offsets == [(3.0, 3.0), (3.0, 9.0), (-3.0, -3.0), (3.0, 15.0), (3.0, 3.0)]
+
+
+def test_results_md_says_how_many_episodes_each_cell_has():
+    """results.md's settings line: a count under the random protocol, one episode per grid point under the spatial
+    one (results.json stores that as the phrase 'one per valid grid point')."""
+    assert reports._episodes_per_cell({"eval_episodes_per_cell": 50}) == "50 episodes per cell"
+    assert reports._episodes_per_cell({"eval_episodes_per_cell": "one per valid grid point"}) == (
+        "one episode per valid grid point")

@@ -96,12 +96,9 @@ def test_reset_places_the_task_objects(env):
 
 
 def _front_pixels(env, points_world):
-    """Pixels of world points in the front image, through the env's exact front camera (K, T_world_cam)."""
-    cam = env.embodiment().cameras["observation.images.front"]
-    T_cam_world = np.linalg.inv(np.asarray(cam.T_world_cam, dtype=float))
-    p = (T_cam_world @ np.c_[points_world, np.ones(len(points_world))].T)[:3]
-    uv = np.asarray(cam.K, dtype=float) @ p
-    return np.round(uv[:2] / uv[2]).astype(int).T
+    """Pixels of world points in the front image, through the env's exact front camera."""
+    uv, _ = env.embodiment().cameras["observation.images.front"].project(np.asarray(points_world, dtype=float))
+    return np.round(uv.numpy()).astype(int)
 
 
 def test_reach_targets_post_shows_where_and_how_high_the_ball_is():
