@@ -547,6 +547,8 @@ class AbsoluteEEPoseAdapter(ActionAdapter):
 
 # ---- 4. absolute joint positions (URDF forward / inverse kinematics) -----------------
 
+ANCHORS = ("measured", "last_command")  # JointPositionAdapter.anchor
+
 
 class JointPositionAdapter(ActionAdapter):
     """Dataset action ``[q_1..q_n, gripper]``: absolute joint position targets per step.
@@ -568,6 +570,9 @@ class JointPositionAdapter(ActionAdapter):
       ``ik_num_retries - 1`` Gaussian perturbations of ``ik_retry_std``); among converged retries
       the one closest to ``q_now`` wins, else the one with the smallest error. Per-step errors are
       in ``self.last_ik_info`` (``converged``, ``err_pos`` [m], ``err_rot`` [rad]).
+
+    ``anchor``: the joints a chunk starts from, ``"measured"`` (the state's) or ``"last_command"`` (the last targets
+    sent, put into ``state`` by the policy: ``lerobot_rnd.anchor``; for position servos that sag under gravity).
 
     ``ik_orientation_weight`` (metres per radian in the least-squares objective, default 1): below 1 the IK
     keeps the position and gives up the rotation an arm with fewer than 6 joints cannot reach (the SO-101's
@@ -593,6 +598,7 @@ class JointPositionAdapter(ActionAdapter):
         ik_lm_damping: float = 0.1,
         ik_enforce_joint_limits: bool = True,
         ik_orientation_weight: float = 1.0,
+        anchor: str = "measured",
         joint_scale: float | Sequence[float] | None = None,
         **kwargs: Any,
     ):
@@ -623,6 +629,9 @@ class JointPositionAdapter(ActionAdapter):
         self.ik_orientation_weight = float(ik_orientation_weight)
         if not (math.isfinite(self.ik_orientation_weight) and self.ik_orientation_weight > 0):
             raise ValueError(f"ik_orientation_weight must be a finite number > 0, got {ik_orientation_weight!r}")
+        if anchor not in ANCHORS:
+            raise ValueError(f"anchor must be one of {ANCHORS}, got {anchor!r}")
+        self.anchor = anchor
         self._chains: dict[tuple[str, torch.dtype], Any] = {}
         chain = self.chain(torch.device("cpu"), torch.float64)
         self.joint_names: list[str] = list(chain.get_joint_parameter_names(exclude_fixed=True))
@@ -821,6 +830,7 @@ class JointPositionAdapter(ActionAdapter):
             "ik_lm_damping": self.ik_lm_damping,
             "ik_enforce_joint_limits": self.ik_enforce_joint_limits,
             "ik_orientation_weight": self.ik_orientation_weight,
+            "anchor": self.anchor,
             "joint_scale": self.joint_scale,
         }
 

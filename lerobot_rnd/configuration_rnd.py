@@ -334,7 +334,8 @@ class RnDConfig(PreTrainedConfig):
 
     @property
     def action_delta_indices(self) -> list:
-        return list(range(self.chunk_size))
+        # from -1: the step before the chunk, where a chunk may start from (`lerobot_rnd.anchor`)
+        return list(range(-1, self.chunk_size))
 
     @property
     def reward_delta_indices(self) -> None:

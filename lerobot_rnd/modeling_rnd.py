@@ -21,6 +21,7 @@ from lerobot.utils.constants import ACTION, OBS_IMAGES, OBS_STATE
 from torch import Tensor, nn
 
 from lerobot_rnd.action_adapters import ActionAdapter
+from lerobot_rnd.anchor import anchor_state
 from lerobot_rnd.configuration_rnd import RnDConfig, migrate_saved_config
 from lerobot_rnd.diffusion_space import EEPoseSpace, JointSpace, check_diffusion_space, diffusion_dim
 from lerobot_rnd.embodiment_binding import (
@@ -50,6 +51,8 @@ from lerobot_rnd.sampler import (
 from lerobot_rnd.statistics import MinMaxStats, estimate_rnd_statistics, load_episode_arrays
 from lerobot_rnd.tasks import TASK_KEY, resolve_task_conditioning, task_indices
 
+#: Batch key of the last action the policy sent (B, A), given to `predict_action_chunk` by `select_action`.
+PREVIOUS_ACTION = "rnd.previous_action"
 logger = logging.getLogger(__name__)
 
 # True while `RnDPolicy.from_pretrained` builds the policy: LeRobot's `make_policy` passes the dataset's metadata to
@@ -176,6 +179,7 @@ class RnDPolicy(PreTrainedPolicy):
             OBS_IMAGES: deque(maxlen=self.config.n_obs_steps),
             ACTION: deque(maxlen=self.config.n_action_steps),
         }
+        self._previous_action = None  # the last action sent (B, A): where the next chunk starts (anchor.py)
 
     def _stack_images(self, batch: dict[str, Tensor]) -> dict[str, Tensor]:
         """Stack the cameras into batch[OBS_IMAGES] (..., C, 3, h, w), resized to the network's image size."""
@@ -212,6 +216,7 @@ class RnDPolicy(PreTrainedPolicy):
         if state.ndim == 2:
             state = state[:, None].expand(-1, self.config.n_obs_steps, -1)
         task_index = self._task_index(batch, state.shape[0], state.device)
+        state = anchor_state(self.model.action_adapter, state, batch.get(PREVIOUS_ACTION), None)
         return self.model.generate_actions(images, state, noise=noise, task_index=task_index)
 
     @torch.no_grad()
@@ -227,20 +232,28 @@ class RnDPolicy(PreTrainedPolicy):
             }
             if TASK_KEY in batch:
                 stacked[TASK_KEY] = batch[TASK_KEY]
+            if self._previous_action is not None:
+                stacked[PREVIOUS_ACTION] = self._previous_action
             actions = self.predict_action_chunk(stacked, noise=noise)[:, : self.config.n_action_steps]
             self._queues[ACTION].extend(actions.transpose(0, 1))
-        return self._queues[ACTION].popleft()
+        self._previous_action = self._queues[ACTION].popleft()
+        return self._previous_action
 
     def forward(self, batch: dict[str, Tensor]) -> tuple[Tensor, dict]:
         """Training loss on a batch with history: images (B, H, 3, h, w) per camera, state (B, H, D),
-        action (B, T, A), optional `action_is_pad` (B, T)."""
+        action (B, T, A) or, as the dataset gives it (`action_delta_indices`), (B, 1 + T, A) with the step before
+        the chunk first, optional `action_is_pad` (B, T) or (B, 1 + T)."""
         batch = self._stack_images(batch)
         images, state = batch[OBS_IMAGES], batch[OBS_STATE]
         if images.ndim == 5:
             images, state = images[:, None], state[:, None] if state.ndim == 2 else state
-        action_is_pad = batch.get("action_is_pad")
+        action, action_is_pad = batch[ACTION], batch.get("action_is_pad")
+        if action.shape[1] == self.config.chunk_size + 1:
+            has_previous = None if action_is_pad is None else ~action_is_pad[:, 0]
+            state = anchor_state(self.model.action_adapter, state, action[:, 0], has_previous)
+            action, action_is_pad = action[:, 1:], None if action_is_pad is None else action_is_pad[:, 1:]
         task_index = self._task_index(batch, state.shape[0], state.device)
-        return self.model.compute_loss(images, state, batch[ACTION], action_is_pad, task_index=task_index)
+        return self.model.compute_loss(images, state, action, action_is_pad, task_index=task_index)
 
     def _task_index(self, batch: dict, batch_size: int, device) -> Tensor | None:
         """The batch's task indices (B,) in `config.tasks` when the policy conditions on tasks, else None (a
@@ -431,6 +444,7 @@ class RnDModel(nn.Module):
             ),
             noisy_sample_targets=self.noisy_sample_targets,
             device=self.action_stats.min.device,
+            anchor=lambda state, previous, has: anchor_state(self.action_adapter, state, previous, has),
         )
         self.action_stats.set(stats["action_min"], stats["action_max"])
         self.displacement_stats.set(stats["displacement_min"], stats["displacement_max"])

@@ -176,6 +176,11 @@ def so101_ee_pose_source(T_world_base: Any = None) -> EEPoseSource:
     )  # fmt: skip
 
 
+#: Where the SO-101's action chunks start from (`lerobot_rnd.anchor`): its servos sag under gravity, so the
+#: measured joints sit below the last command.
+SO101_ANCHOR = "last_command"
+
+
 def so101_action_adapter(
     T_world_base: Any = None, gripper_threshold: float | None = None, **ik: Any
 ) -> dict[str, Any]:
@@ -188,7 +193,7 @@ def so101_action_adapter(
         urdf=URDF_PATH.read_text(), ee_link=EE_LINK, T_world_base=T_world_base,
         state_joint_indices=list(range(ARM_JOINTS)), joint_scale=DEG_TO_RAD, gripper_open=LEROBOT_GRIPPER_OPEN,
         gripper_closed=LEROBOT_GRIPPER_CLOSED, gripper_threshold=gripper_threshold,
-        gripper_from_data=gripper_threshold is None, **ik,
+        gripper_from_data=gripper_threshold is None, **{"anchor": SO101_ANCHOR, **ik},
     ).to_dict()  # fmt: skip
 
 

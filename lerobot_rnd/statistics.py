@@ -69,22 +69,24 @@ def load_episode_arrays(dataset_root: str | Path) -> list[tuple[np.ndarray, np.n
 
 
 def sample_training_windows(
-    episodes: list[tuple[np.ndarray, np.ndarray]], n_obs_steps: int, horizon: int, num_samples: int, seed: int = 0
+    episodes: list[tuple[np.ndarray, np.ndarray]], n_obs_steps: int, horizon: int, num_samples: int, seed: int = 0,
+    anchor: Callable | None = None,
 ) -> tuple[Tensor, Tensor, Tensor]:
     """Draw windows like LeRobot's sampler does (indices clamped at episode ends, padded steps flagged).
 
-    Returns state (S, H, D), action (S, T, A), action_is_pad (S, T).
+    Returns state (S, H, D), action (S, T, A), action_is_pad (S, T). `anchor(state, previous_action (S, A),
+    has_previous (S,)) -> state`: where the chunk starts from (`lerobot_rnd.anchor.anchor_state`), if given.
     """
     rng = np.random.default_rng(seed)
     lengths = np.array([len(s) for s, _ in episodes])
     ep_ids = rng.choice(len(episodes), size=num_samples, p=lengths / lengths.sum())
     frame_ids = [int(rng.integers(0, lengths[e])) for e in ep_ids]
-    return _windows(episodes, list(zip(ep_ids, frame_ids)), n_obs_steps, horizon)
+    return _windows(episodes, list(zip(ep_ids, frame_ids)), n_obs_steps, horizon, anchor)
 
 
-def _windows(episodes, picks, n_obs_steps: int, horizon: int) -> tuple[Tensor, Tensor, Tensor]:
+def _windows(episodes, picks, n_obs_steps: int, horizon: int, anchor=None) -> tuple[Tensor, Tensor, Tensor]:
     """The training windows (state (S, H, D), action (S, T, A), action_is_pad (S, T)) at (episode, frame) picks."""
-    states, actions, pads = [], [], []
+    states, actions, pads, previous = [], [], [], []
     for e, i in picks:
         st, ac = episodes[e]
         n = len(st)
@@ -93,14 +95,18 @@ def _windows(episodes, picks, n_obs_steps: int, horizon: int) -> tuple[Tensor, T
         pads.append(act_idx >= n)
         states.append(st[obs_idx])
         actions.append(ac[np.clip(act_idx, 0, n - 1)])
-    return torch.from_numpy(np.stack(states)), torch.from_numpy(np.stack(actions)), torch.from_numpy(np.stack(pads))
+        previous.append(ac[max(i - 1, 0)])
+    state = torch.from_numpy(np.stack(states))
+    if anchor is not None:
+        state = anchor(state, torch.from_numpy(np.stack(previous)), torch.tensor([i > 0 for _, i in picks]))
+    return state, torch.from_numpy(np.stack(actions)), torch.from_numpy(np.stack(pads))
 
 
-def iter_all_windows(episodes, n_obs_steps: int, horizon: int, batch_size: int = 4096):
+def iter_all_windows(episodes, n_obs_steps: int, horizon: int, batch_size: int = 4096, anchor=None):
     """Every training window of the dataset (one per frame), in batches: yields (state, action, action_is_pad)."""
     picks = [(e, i) for e, (st, _) in enumerate(episodes) for i in range(len(st))]
     for start in range(0, len(picks), batch_size):
-        yield _windows(episodes, picks[start : start + batch_size], n_obs_steps, horizon)
+        yield _windows(episodes, picks[start : start + batch_size], n_obs_steps, horizon, anchor)
 
 
 def _check_finite_rows(episodes) -> None:
@@ -143,6 +149,7 @@ def estimate_rnd_statistics(
     device: torch.device | str = "cpu",
     batch_size: int = 16,
     seed: int = 0,
+    anchor: Callable | None = None,
 ) -> dict[str, Tensor]:
     """Action, displacement and gripper statistics of R&D's training targets, from the dataset on disk.
 
@@ -151,7 +158,7 @@ def estimate_rnd_statistics(
     (T_ee_target (S, T, 4, 4), gripper (S, T))` (the action adapter), `diffusion_target(action, T_ee_target,
     state_now (S, D)) -> (S, T, D')` (the unnormalised diffused variable), and `noisy_sample_targets(images,
     T_world_ee, gripper, T_ee_target, x_target, state_now, generator=..., action_stats=...)`
-    (`RnDModel.noisy_sample_targets`).
+    (`RnDModel.noisy_sample_targets`); `anchor` as in `sample_training_windows`.
 
     - Action min/max over EVERY training window of the dataset (streamed, padded steps excluded), widened by
       `STATS_MARGIN`, so no training target falls outside [-1, 1].
@@ -169,7 +176,7 @@ def estimate_rnd_statistics(
     big = torch.finfo(torch.float32).max
     a_min = a_max = None
     n_closed = n_open = 0
-    for state, action, is_pad in iter_all_windows(episodes, n_obs_steps, chunk_size):
+    for state, action, is_pad in iter_all_windows(episodes, n_obs_steps, chunk_size, anchor=anchor):
         state, action, valid = state.to(device), action.to(device), (~is_pad).to(device)
         T_world_ee = ee_pose(state)
         T_ee_target, grip = to_rnd(action, T_world_ee[:, -1], state=state[:, -1])
@@ -186,7 +193,7 @@ def estimate_rnd_statistics(
     action_stats.set(a_min, a_max)
     pos_weight = 1.0 if n_closed == 0 or n_open == 0 else min(10.0, max(0.1, n_open / n_closed))
 
-    state, action, is_pad = sample_training_windows(episodes, n_obs_steps, chunk_size, num_samples, seed=seed)
+    state, action, is_pad = sample_training_windows(episodes, n_obs_steps, chunk_size, num_samples, seed, anchor)
     d_min = torch.full((n_cameras, 3), float("inf"), device=device)
     d_max = torch.full((n_cameras, 3), float("-inf"), device=device)
     generator = torch.Generator(device="cpu").manual_seed(seed)

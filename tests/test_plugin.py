@@ -79,7 +79,7 @@ def test_config_round_trips_through_json(tmp_path):
         assert getattr(loaded, name) == getattr(cfg, name), name
     assert tuple(loaded.image_size) == (96, 64)
     assert loaded.observation_delta_indices == [-1, 0]
-    assert loaded.action_delta_indices == list(range(6))
+    assert loaded.action_delta_indices == list(range(-1, 6))  # the step before the chunk first (anchor.py)
 
 
 @pytest.mark.parametrize(

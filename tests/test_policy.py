@@ -16,7 +16,7 @@ def test_training_batch_shapes_and_loss(toy_dataset_root):
     policy, _ = make_policy(toy_dataset_root)
     batch = training_batch(toy_dataset_root, policy.config)
     assert batch["observation.images.front"].shape == (4, 2, 3, 64, 64)
-    assert batch["action"].shape == (4, 4, 4)
+    assert batch["action"].shape == (4, 1 + 4, 4)  # the step before the chunk first (anchor.py)
     policy.train()
     loss, info = policy.forward(batch)
     assert loss.ndim == 0 and torch.isfinite(loss)
