@@ -66,7 +66,7 @@ STATUS: dict[str, tuple[str, str]] = {
     "so101_random": (CURRENT, "Simulated SO-101 (issue 34), cameras measured by lerobot-rnd-calibrate, 10 random "
                      "demos, 3,000 steps, 50 test episodes from seed 1000: reach-target (the ball on its post) "
                      "R&D-AI 1/50, ACT 5/50; pick-cube R&D-AI 0/50 (it reaches towards the cube, never lifts it), "
-                     "ACT 1/50; with 20 demos, reach-target R&D-AI 1/50 (the other 20-demo runs in progress); "
+                     "ACT 1/50; with 20 demos, reach-target R&D-AI 1/50, ACT 6/50 (pick-cube not run); "
                      "Diffusion Policy not run. The reach-target runs on the floating ball are archived "
                      "(archive/so101_reach_floating_ball)."),
     "so101_exact_calibration": (CURRENT, "SO-101 reach-target (the ball on its post), R&D-AI trained on the same 10 "
