@@ -65,43 +65,30 @@ STATUS: dict[str, tuple[str, str]] = {
     "panda_env_speed.json": (CURRENT, "Speed of the Panda suite's environments and scripted experts (no policy)."),
     "so101_random": (CURRENT, "Simulated SO-101 (issue 34), cameras measured by lerobot-rnd-calibrate, 10 random "
                      "demos, 3,000 steps, 50 test episodes from seed 1000: reach-target (the ball on its post) "
-                     "R&D-AI 1/50, ACT 5/50; pick-cube R&D-AI 0/50 (it reaches towards the cube, never lifts it), "
-                     "ACT 1/50; with 20 demos, reach-target R&D-AI 1/50, ACT 6/50 (pick-cube not run); "
+                     "R&D-AI 2/50, ACT 5/50; pick-cube R&D-AI 0/50, ACT 1/50; with 20 demos, reach-target "
+                     "R&D-AI (running), ACT 6/50 (pick-cube not run). R&D-AI's chunks start from the last joint "
+                     "command (lerobot_rnd/anchor.py); its earlier runs are archived (archive/so101_measured_anchor); "
                      "Diffusion Policy not run. The reach-target runs on the floating ball are archived "
                      "(archive/so101_reach_floating_ball)."),
     "so101_exact_calibration": (CURRENT, "SO-101 reach-target (the ball on its post), R&D-AI trained on the same 10 "
                                 "demos as so101_random but with MuJoCo's exact cameras (--calibration exact), 3,000 "
                                 "steps, 50 test episodes from seed 1000: 2/50, against 1/50 with the measured cameras. "
                                 "pick-cube not run."),
-    "trace_so101_reach_rnd_ai.json": (CURRENT, "Closed loop on validation seeds 100-119, the so101_random R&D-AI "
-                                       "reach-target checkpoint (the ball on its post): 1/20; the gripper's "
-                                       "displacement at step 30 follows the goal a little (slopes x 0.12, y 0.21, "
-                                       "z 0.38; the demos 0.76-0.79). The JSON's command names the outputs/diag path "
-                                       "it was written to."),
-    "chunk_goal_response_so101_pick_rnd_ai.json": (CURRENT, "The same on the pick-cube R&D-AI checkpoint (frames 0, 8, "
-                                                   "16, 32): shoulder pan slope 0.09 at frame 0, 0.72 at 8, 0.89 at "
-                                                   "16; the first chunk barely depends on where the cube is."),
+    "trace_so101_reach_rnd_ai.json": (CURRENT, "Closed loop on validation seeds 100-119, R&D-AI reach-target (the "
+                                       "ball on its post, 10 demos) trained with chunks that start from the last "
+                                       "joint command (lerobot_rnd/anchor.py), the checkpoint so101_random reports: "
+                                       "2/20; slopes at step 30 x 0.15, y 0.24, z 0.36 (the demos 0.76-0.79); it ends "
+                                       "a median 13 cm from the ball, within 3 cm of the table in 18 of 20 episodes. "
+                                       "The JSON's command names the outputs/diag path it was written to."),
+    "trace_so101_reach_act_n20.json": (CURRENT, "The same for the so101_random ACT reach-target checkpoint with 20 "
+                                       "demos: 0/20, slopes x 0.18, y 0.38, z -0.06, a median 12 cm from the ball at "
+                                       "the end, within 3 cm of the table in 11 of 20 episodes."),
     "so101_reach_ray.json": (CURRENT, "SO-101 reach-target's balls on one viewing ray of the front camera, floating "
                              "and on the post: 19 cm apart yet on the same pixel, 7.0 against 12.7 px wide at 128 "
                              "px; the post's length tells them apart (docs/images/so101_reach_ray.png)."),
     "trace_so101_reach_act.json": (CURRENT, "The same for the so101_random ACT reach-target checkpoint (the ball on "
                                    "its post): 2/20, slopes x 0.13, y 0.13, z -0.04, a median 10 cm from the ball at "
                                    "the end. The JSON's command names the outputs/diag path it was written to."),
-    "trace_so101_reach_rnd_ai_chunk16.json": (CURRENT, "A validation run: R&D-AI reach-target (the ball on its post, "
-                                               "10 demos) trained with 16-step chunks, 8 executed (run_benchmark.py "
-                                               "--suite so101 --scale cpu --tasks reach-target --demos 10 --methods "
-                                               "rnd_ai --steps 3000 --train-only --train-arg "
-                                               "rnd_ai:--policy.chunk_size=16 --out outputs/diag/so101_post_chunk16), "
-                                               "closed loop on validation seeds 100-119: 2/20 (8-step chunks: 1/20), "
-                                               "slopes x 0.01, y 0.24, z 0.24: the SO-101 config keeps 8-step "
-                                               "chunks, the test seeds were not run."),
-    "trace_so101_reach_rnd_ai_p16.json": (CURRENT, "A validation run: R&D-AI reach-target (the ball on its post, 10 "
-                                           "demos) trained with 16-px patches (run_benchmark.py --suite so101 "
-                                           "--scale cpu --tasks reach-target --demos 10 --methods rnd_ai --steps "
-                                           "3000 --train-only --train-arg rnd_ai:--policy.patch_size=16 --out "
-                                           "outputs/diag/so101_post_p16), closed loop on validation seeds 100-119: "
-                                           "1/20, slopes x 0.10, y -0.27, z -0.23, a median 25 cm from the ball: the "
-                                           "SO-101 config keeps 32-px patches, the test seeds were not run."),
     "so101_ik_study.json": (CURRENT, "SO-101 inverse kinematics per orientation weight on recorded pick-cube joint "
                             "targets perturbed as a prediction error would (position vs rotation error)."),
     "so101_env_speed.json": (CURRENT, "The simulated SO-101's scripted experts (30/30 on each task, seeds 0-29) and "
@@ -262,6 +249,13 @@ STATUS: dict[str, tuple[str, str]] = {
                                "demo, one way or the other by the side of the ball; the policy fitted the demos on "
                                "their own frames (chunk_goal_response.json) but reached no ball. The expert now "
                                "keeps the roll (see its NOTE.md); the demos were re-recorded."),
+    "so101_measured_anchor": (ARCHIVED, "SO-101 R&D-AI (the ball on its post; 10 random demos, measured cameras, "
+                              "3,000 steps, 50 test episodes from seed 1000): reach-target 1/50, pick-cube 0/50, "
+                              "reach-target with 20 demos 1/50, with MuJoCo's exact cameras 2/50; with their "
+                              "validation traces and open-loop checks. Superseded: their chunks started from the "
+                              "measured joints, which sag below the command under gravity, so holding still sank "
+                              "the arm; the SO-101 adapter now starts them from the last command (see its "
+                              "NOTE.md)."),
     "so101_reach_floating_ball": (ARCHIVED, "SO-101 reach-target with the ball floating (10 demos, measured cameras, "
                                   "3,000 steps, 50 test episodes from seed 1000): R&D-AI 3/50, ACT 5/50; 20 demos "
                                   "R&D-AI 3/50; with every trace and open-loop diagnostic of those checkpoints and "
