@@ -66,7 +66,7 @@ STATUS: dict[str, tuple[str, str]] = {
     "so101_random": (CURRENT, "Simulated SO-101 (issue 34), cameras measured by lerobot-rnd-calibrate, 10 random "
                      "demos, 3,000 steps, 50 test episodes from seed 1000: reach-target (the ball on its post) "
                      "R&D-AI 2/50, ACT 5/50; pick-cube R&D-AI 0/50, ACT 1/50; with 20 demos, reach-target "
-                     "R&D-AI (running), ACT 6/50 (pick-cube not run). R&D-AI's chunks start from the last joint "
+                     "R&D-AI 0/50, ACT 6/50 (pick-cube not run). R&D-AI's chunks start from the last joint "
                      "command (lerobot_rnd/anchor.py); its earlier runs are archived (archive/so101_measured_anchor); "
                      "Diffusion Policy not run. The reach-target runs on the floating ball are archived "
                      "(archive/so101_reach_floating_ball)."),
