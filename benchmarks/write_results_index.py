@@ -71,9 +71,10 @@ STATUS: dict[str, tuple[str, str]] = {
                      "Diffusion Policy not run. The reach-target runs on the floating ball are archived "
                      "(archive/so101_reach_floating_ball)."),
     "so101_exact_calibration": (CURRENT, "SO-101 reach-target (the ball on its post), R&D-AI trained on the same 10 "
-                                "demos as so101_random but with MuJoCo's exact cameras (--calibration exact), 3,000 "
-                                "steps, 50 test episodes from seed 1000: 2/50, against 1/50 with the measured cameras. "
-                                "pick-cube not run."),
+                                "demos as so101_random but with MuJoCo's exact cameras (--calibration exact), chunks "
+                                "from the last joint command, 3,000 steps, 50 test episodes from seed 1000: 2/50, the "
+                                "same as with the measured cameras. pick-cube not run. The JSON's commands name the "
+                                "outputs/diag paths they were run in."),
     "trace_so101_reach_rnd_ai.json": (CURRENT, "Closed loop on validation seeds 100-119, R&D-AI reach-target (the "
                                        "ball on its post, 10 demos) trained with chunks that start from the last "
                                        "joint command (lerobot_rnd/anchor.py), the checkpoint so101_random reports: "
