@@ -92,7 +92,7 @@ def test_the_task_token_separates_tasks_with_identical_observations(two_task_roo
     obs = _observation(data, starts)
     tasks = [data["task"][i] for i in starts]
     actions = policy.predict_action_chunk({**obs, "task": tasks}, noise=noise)[:, 0, :3]
-    demo = data["action"][starts][:, 0, :3]
+    demo = data["action"][starts][:, 1, :3]  # the chunk's first step (row 0 is the step before it, anchor.py)
     agreement = (actions * demo).sum(-1) / (demo.norm(dim=-1) ** 2)  # 1 = the demo's step, -1 = the other task's
     assert (agreement > 0.5).all(), (tasks, agreement)
     # the same observations with the task strings swapped go the other way
