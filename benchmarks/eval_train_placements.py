@@ -77,7 +77,7 @@ def replay_demos(dataset_root: Path, task: str) -> list[dict]:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--suite", default="metaworld", choices=["metaworld", "panda"])
+    p.add_argument("--suite", default="metaworld", choices=["metaworld", "panda", "so101"])
     p.add_argument("--protocol", default="random", choices=["random", "spatial"],
                    help="the benchmark's protocol: its datasets' placements and its work dir's runs/<protocol>")
     p.add_argument("--episode-length", type=int, default=None,

@@ -81,6 +81,14 @@ STATUS: dict[str, tuple[str, str]] = {
                                        "2/20; slopes at step 30 x 0.15, y 0.24, z 0.36 (the demos 0.76-0.79); it ends "
                                        "a median 13 cm from the ball, within 3 cm of the table in 18 of 20 episodes. "
                                        "The JSON's command names the outputs/diag path it was written to."),
+    "trace_so101_reach_rnd_ai_hold40.json": (CURRENT, ("The same for R&D-AI trained on demos that hold at the ball "
+                                             "40 frames after the expert's first success (run_benchmark.py "
+                                             "--extra-steps 40; 703 frames against 403): 2/20, slopes x 0.01, y "
+                                             "-0.02, z 0.18, a median 15 cm from the ball at the end, within 3 cm of "
+                                             "the table in 17 of 20: holding demos change nothing.")),
+    "train_placements_so101_reach_n10.json": (CURRENT, ("The so101_random reach-target checkpoints (10 demos) on "
+                                              "their own 10 demo placements: R&D-AI 5/10, ACT 5/10. Neither "
+                                              "reproduces its demos.")),
     "trace_so101_reach_act_n20.json": (CURRENT, "The same for the so101_random ACT reach-target checkpoint with 20 "
                                        "demos: 0/20, slopes x 0.18, y 0.38, z -0.06, a median 12 cm from the ball at "
                                        "the end, within 3 cm of the table in 11 of 20 episodes."),

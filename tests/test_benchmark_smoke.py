@@ -257,6 +257,26 @@ def test_resume_refuses_another_image_size(tmp_path):
     with pytest.raises(SystemExit):
         cli.parse_args(["--scale", "smoke", "--image-size", "0"])
 
+def test_extra_steps_reach_the_recorder_and_name_their_own_datasets(tmp_path):
+    cmds = _dry_run(tmp_path, "--methods", "act", "--extra-steps", "40")
+    rec = [c for c in cmds if "lerobot-rnd-record" in c]
+    assert len(rec) == 1 and "--extra-steps 40" in rec[0] and "mw_reach-v3_random_s0_n3_x40 " in rec[0]
+    train = [c for c in cmds if "lerobot-train" in c]
+    assert train and all(c.count("_x40") == 2 for c in train)  # repo id and root
+    same = _dry_run(tmp_path / "ten", "--methods", "act", "--extra-steps", "10")  # the recorder's default: as before
+    assert not [c for c in same if "--extra-steps" in c or "_x10" in c]
+    common = ["--scale", "smoke", "--methods", "act", "--out", str(tmp_path / "o"), "--work-dir", str(tmp_path / "w"),
+              "--data-dir", str(tmp_path / "d"), "--resume"]  # fmt: skip
+    (tmp_path / "w").mkdir()
+    (tmp_path / "w" / "state.json").write_text(json.dumps({"args": {"extra_steps": 40}}))
+    b = Benchmark(cli.parse_args(common))  # checkpoints trained on hold-at-goal demos must not resume on others
+    b.record = lambda task: (_ for _ in ()).throw(AssertionError("nothing may run"))
+    with pytest.raises(SystemExit, match="pass the same --extra-steps"):
+        b.run()
+    with pytest.raises(SystemExit):
+        cli.parse_args(["--scale", "smoke", "--extra-steps", "-1"])
+
+
 def test_dry_run_with_two_demo_counts_extends_the_smaller_dataset(tmp_path):
     """Used to crash: the dry run copied the smaller dataset, which it never records."""
     cmds = _dry_run(tmp_path, "--demos", "3,5", "--methods", "act")

@@ -70,6 +70,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="camera images' side in pixels, for the demos (the recorder's --image-size), R&D's "
                         "--policy.image_size and the evaluation (default: the recorder's 128); the datasets of "
                         "another size are named with _img<N>")  # fmt: skip
+    p.add_argument("--extra-steps", type=int,
+                   help="frames the demos go on after the expert's first success (the recorder's --extra-steps, "
+                        "default 10; e.g. 40 for demos that hold at the goal); the datasets of another value are "
+                        "named with _x<N>")  # fmt: skip
     p.add_argument("--train-arg", action="append",
                    help="extra lerobot-train argument for some methods: 'METHOD:--x=y', 'rnd:--x=y' (all R&D "
                         "variants) or 'all:--x=y'; repeatable")  # fmt: skip
@@ -119,6 +123,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     a.grid_dims = _csv(a.grid_dims, int) if a.grid_dims else None
     if a.image_size is not None and a.image_size <= 0:
         p.error(f"--image-size must be a positive number of pixels, got {a.image_size}")
+    if a.extra_steps is not None and a.extra_steps < 0:
+        p.error(f"--extra-steps must be >= 0 frames, got {a.extra_steps}")
     if a.grid_dims is not None and len(a.grid_dims) not in (2, 3):
         p.error("--grid-dims takes two or three coordinates")
     if a.suite != "metaworld":

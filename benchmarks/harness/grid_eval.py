@@ -1,6 +1,6 @@
 """The spatial protocol's evaluation: the grid of evaluation placements (two placement coordinates, or three:
 Panda's object x, y and yaw) and lerobot-eval's loop over an explicit list of placements (``run_benchmark.py
-_grid_eval``, run as a subprocess: ``rnd_mw`` and ``rnd_panda`` take no placement list on the command line)."""
+_grid_eval``, run as a subprocess: ``rnd_mw``, ``rnd_panda`` and ``rnd_so101`` take no placement list on the command line)."""
 
 from __future__ import annotations
 
@@ -113,7 +113,7 @@ def grid_eval_argv(ckpt: Path, device: str, task: str, episode_length: int, batc
     """The command that evaluates ``ckpt`` on the placements listed in ``placements_file`` (runs ``main``).
 
     ``env_args``: lerobot-eval's ``--env.*`` flags for the demos' observations (``recorded_env_args``);
-    ``env_type``: rnd_mw or rnd_panda."""
+    ``env_type``: rnd_mw, rnd_panda or rnd_so101."""
     return [sys.executable, str(ENTRY_POINT), "_grid_eval",
             f"--policy-path={ckpt}", f"--device={device}", f"--task={task}",
             f"--episode-length={episode_length}", f"--batch-size={batch_size}",
@@ -123,7 +123,7 @@ def grid_eval_argv(ckpt: Path, device: str, task: str, episode_length: int, batc
 
 
 def env_config(task: str, episode_length: int, env_args: list[str], env_type: str = "rnd_mw"):
-    """The rnd_mw (or rnd_panda) env config that lerobot-eval builds from ``--env.task=...
+    """The rnd_mw (or rnd_panda, rnd_so101) env config that lerobot-eval builds from ``--env.task=...
     --env.episode_length=... *env_args``."""
     import draccus
 
@@ -131,10 +131,12 @@ def env_config(task: str, episode_length: int, env_args: list[str], env_type: st
 
     if env_type == "rnd_panda":
         from lerobot_rnd.sim.panda_env import RnDPandaEnvConfig as RnDMetaWorldEnvConfig
+    elif env_type == "rnd_so101":
+        from lerobot_rnd.sim.so101_env import RnDSO101EnvConfig as RnDMetaWorldEnvConfig
     elif env_type == "rnd_mw":
         from lerobot_rnd.sim.metaworld_env import RnDMetaWorldEnvConfig
     else:
-        raise ValueError(f"--env-type must be rnd_mw or rnd_panda, got {env_type!r}")
+        raise ValueError(f"--env-type must be rnd_mw, rnd_panda or rnd_so101, got {env_type!r}")
 
     args = [f"--task={task}", f"--episode_length={episode_length}"]
     for x in env_args:
@@ -158,7 +160,7 @@ def main(argv: list[str]) -> int:
     p.add_argument("--output-dir", required=True)
     p.add_argument("--env-arg", action="append", default=[], metavar="--env.FIELD=VALUE",
                    help="an --env.* flag of lerobot-eval for the rnd_mw env (the demos' cameras, corner2 position...)")
-    p.add_argument("--env-type", default="rnd_mw", choices=["rnd_mw", "rnd_panda"])
+    p.add_argument("--env-type", default="rnd_mw", choices=["rnd_mw", "rnd_panda", "rnd_so101"])
     a = p.parse_args(argv)
     sys.path.insert(0, str(REPO_ROOT))
     import gymnasium as gym

@@ -47,6 +47,13 @@ def recorder_image_size() -> int:
     return RecordSettings.image_size
 
 
+def recorder_extra_steps() -> int:
+    """lerobot-rnd-record's default --extra-steps (frames after the expert's first success)."""
+    from lerobot_rnd.sim.record import RecordSettings
+
+    return RecordSettings.extra_steps
+
+
 def put_train_slice(st: dict, entry: dict) -> None:
     """Append a training slice's record to ``st["train_slices"]``, replacing that slice's provisional record (the
     same start step, written at its last checkpoint) if there is one."""
@@ -119,9 +126,9 @@ class Benchmark:
         tasks = unit_tasks(task)
         if len(tasks) > 1:
             task = f"mt{len(tasks)}-{hashlib.sha1(','.join(tasks).encode()).hexdigest()[:8]}"
-        other = self.other_image_size()
+        other, extra = self.other_image_size(), self.other_extra_steps()
         name = (f"{self.suite['dataset_prefix']}_{task}_{self.placements_mode()}_s{a.record_seed}_n{n}"
-                + (f"_img{other}" if other else ""))  # fmt: skip
+                + (f"_img{other}" if other else "") + (f"_x{extra}" if extra is not None else ""))  # fmt: skip
         return self.data_dir / name, f"local/{name}"
 
     def image_size(self) -> int:
@@ -132,6 +139,12 @@ class Benchmark:
         """--image-size where it differs from the recorder's default (it then names the datasets and reaches the
         recorder and R&D), else None: the datasets and commands of a run without the flag."""
         return None if self.image_size() == recorder_image_size() else self.image_size()
+
+    def other_extra_steps(self) -> int | None:
+        """--extra-steps where it differs from the recorder's default (it then names the datasets and reaches the
+        recorder), else None."""
+        x = getattr(self.a, "extra_steps", None)
+        return None if x is None or x == recorder_extra_steps() else x
 
     def make_env(self, task: str):
         """The suite's env of ``task`` (placements and validity; nothing is rendered)."""
@@ -173,6 +186,8 @@ class Benchmark:
                     "--task", task, "--episodes", str(n), "--root", str(root), "--repo-id", repo_id,
                     "--placements", mode, "--seed", str(a.record_seed),
                 ] + (["--image-size", str(other)] if other else []) + (["--resume"] if resume else [])  # fmt: skip
+                if self.other_extra_steps() is not None:
+                    argv += ["--extra-steps", str(self.other_extra_steps())]
                 r = run_logged(argv, self.work / "logs" / f"record_{root.name}.log", env=self.env(),
                                dry_run=a.dry_run)  # fmt: skip
                 if r.rc != 0:
@@ -604,6 +619,13 @@ class Benchmark:
             raise SystemExit(
                 f"{self.work} was run with --image-size {prev_size}, this call has {self.image_size()}: pass the same "
                 "--image-size to --resume (one work dir, one image size)")  # fmt: skip
+        prev_extra = (prev or {}).get("args", {}).get("extra_steps")
+        prev_extra = recorder_extra_steps() if prev_extra is None else prev_extra
+        this_extra = recorder_extra_steps() if self.other_extra_steps() is None else self.other_extra_steps()
+        if prev is not None and a.resume and prev_extra != this_extra:
+            raise SystemExit(f"{self.work} was run with --extra-steps {prev_extra}, this call has "
+                             f"{getattr(a, 'extra_steps', None)}: pass the same --extra-steps to --resume (one work "
+                             "dir, one set of demos)")  # fmt: skip
         if prev is not None and a.resume and (prev.get("args", {}).get("train_arg") or None) != (a.train_arg or None):
             raise SystemExit(
                 f"{self.work} was run with --train-arg {prev['args'].get('train_arg')}, this call has "
@@ -839,6 +861,7 @@ class Benchmark:
             "config_files": {m: _rel(self.config_file(m)) for m in a.methods},
             "record_seed": a.record_seed, "eval_seed": a.eval_seed, "episode_length": a.episode_length,
             "image_size": self.image_size(),
+            "demo_extra_steps": recorder_extra_steps() if self.other_extra_steps() is None else self.other_extra_steps(),
             "eval_episodes_per_cell": (a.eval_episodes if a.protocol == "random" else "one per valid grid point"),
             "ci": "Wilson score interval, 95%",
             "eval_placements": (
