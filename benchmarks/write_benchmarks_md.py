@@ -837,6 +837,30 @@ def panda_spatial_section() -> list[str]:
     ]
 
 
+PANDA_RANDOM_FOLDER = "panda_random"
+PANDA_RANDOM_TASKS = ("pick-place", "press-button")
+
+
+def panda_random_section() -> list[str]:
+    """The Panda suite's random protocol (issue 33: pick-place and press-button, 10 random demos): one row per method,
+    one column per task with a finished run, from the run JSON of PANDA_RANDOM_FOLDER. [] until a run has finished."""
+    columns = [(t, 10) for t in PANDA_RANDOM_TASKS]
+    table = method_by_run_table(PANDA_RANDOM_FOLDER, columns, keep=lambda t, n, finished: finished)
+    if not table:
+        return []
+    return [
+        "### Panda, random protocol (6-DoF gripper, 10 random demos)",
+        "",
+        "Demos at uniformly drawn placements (object x, y and yaw; pick-place's target too), the recording seed 0; "
+        "50 test episodes from seed 1000 (Wilson 95% intervals); 3,000 training steps at batch 8, the configs of "
+        "`policies_config/panda/`; `python benchmarks/run_benchmark.py --suite panda --scale cpu --tasks "
+        f"{','.join(PANDA_RANDOM_TASKS)} --demos 10 --steps 3000 --out benchmarks/results/{PANDA_RANDOM_FOLDER}` "
+        f"([`{PANDA_RANDOM_FOLDER}`](../benchmarks/results/{PANDA_RANDOM_FOLDER}/)).",
+        "",
+        *table,
+    ]
+
+
 PANDA_LONG_FOLDER = "panda_spatial_6000"
 
 
@@ -898,6 +922,8 @@ def current_block() -> list[str]:
         parts += panda + [""]
         longer = panda_training_length_section()
         parts += longer + [""] if longer else []
+    random_protocol = panda_random_section()
+    parts += random_protocol + [""] if random_protocol else []
     train_steps = [(p.name, _load(p)) for p in sorted(RESULTS.glob("train_step_cpu*.json"))]
     inference = RESULTS / "inference_cpu_tier_avx512.json"
     parts += cost_section(train_steps, (inference.name, _load(inference)) if inference.exists() else None) + [""]

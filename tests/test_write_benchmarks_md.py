@@ -192,6 +192,24 @@ def test_so101_section_reads_the_run_files_and_says_what_is_not_run(tmp_path, mo
     assert "| ACT | 3/10 (11-60%) | not run yet | not run yet |" in table
 
 
+def test_panda_random_section_shows_only_finished_tasks(tmp_path, monkeypatch):
+    import json
+
+    import benchmarks.write_benchmarks_md as w
+
+    monkeypatch.setattr(w, "RESULTS", tmp_path)
+    assert w.panda_random_section() == []  # nothing finished: no section
+    runs = tmp_path / w.PANDA_RANDOM_FOLDER / "runs"
+    runs.mkdir(parents=True)
+    chunks = {"0:10": {"successes": [True] * 4 + [False] * 6}, "10:20": {"successes": [False] * 10}}
+    (runs / "act__press-button__n10__seed0.json").write_text(json.dumps({"status": "done", "eval_chunks": chunks}))
+    (runs / "rnd_ai__pick-place__n10__seed0.json").write_text(json.dumps({"status": "training", "eval_chunks": {}}))
+    text = "\n".join(w.panda_random_section())
+    assert "| method | press-button, 10 demos |" in text  # the unfinished pick-place run makes no column
+    assert "| ACT | 4/20 (8-42%) |" in text  # Wilson 95% for 4/20: 8.1-41.6%
+    assert "| R&D-AI | not run yet |" in text
+
+
 def test_panda_spatial_section_shows_only_finished_cells_and_the_heat_maps_that_exist(tmp_path, monkeypatch):
     import json
 
