@@ -121,7 +121,8 @@ STATUS: dict[str, tuple[str, str]] = {
                              "time (62.7 min) includes about 13 minutes in which an open-loop diagnostic shared the "
                              "2 cores (median logged update 0.97 s against about 0.9 s alone).")),
     "panda_random": (CURRENT, ("Issue 33's random protocol on the Panda suite (10 random demos, 3,000 steps, 50 test "
-                     "episodes from seed 1000), in progress: pick-place R&D-AI 0/50, press-button R&D-AI 4/50.")),
+                     "episodes from seed 1000), in progress: pick-place R&D-AI 0/50 (ACT stopped before training); press-button R&D-AI 4/50, ACT "
+                     "19/50, a significant loss for R&D-AI.")),
     "panda_pair_single": (CURRENT, ("Issue 35: the Panda pair's single-task control, R&D-AI trained on lift-red-cube "
                           "alone (10 random demos, the two-cube scene, 3,000 steps), 50 test episodes from seed 1000: "
                           "3/50 (loss 0.166). The two-cube scene is not learned from 10 demos even without a second "
