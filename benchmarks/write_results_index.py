@@ -123,6 +123,15 @@ STATUS: dict[str, tuple[str, str]] = {
     "panda_random": (CURRENT, ("Issue 33's random protocol on the Panda suite (10 random demos, 3,000 steps, 50 test "
                      "episodes from seed 1000), in progress: pick-place R&D-AI 0/50 (ACT stopped before training); press-button R&D-AI 4/50, ACT "
                      "19/50, a significant loss for R&D-AI.")),
+    "train_placements_panda_press_n10.json": (CURRENT, ("The panda_random press-button checkpoints (10 random "
+                                              "demos) on their own 10 demo placements: R&D-AI 0/10, ACT 8/10. "
+                                              "R&D-AI does not fit its demos; ACT does.")),
+    "chunk_goal_response_panda_press_rnd_ai_n10.json": (CURRENT, ("The panda_random R&D-AI press-button checkpoint "
+                                                        "on its own demos, open loop: the first chunk hardly reads "
+                                                        "where the button is (slopes x 0.48, y 0.14, yaw 0.17 at "
+                                                        "frame 0), then follows x and y (0.85, 0.78 at frame 8).")),
+    "chunk_goal_response_panda_press_act_n10.json": (CURRENT, ("The same for the panda_random ACT press-button "
+                                                       "checkpoint: slopes x 1.03, y 1.01, yaw 1.00 at frame 0.")),
     "panda_pair_single": (CURRENT, ("Issue 35: the Panda pair's single-task control, R&D-AI trained on lift-red-cube "
                           "alone (10 random demos, the two-cube scene, 3,000 steps), 50 test episodes from seed 1000: "
                           "3/50 (loss 0.166). The two-cube scene is not learned from 10 demos even without a second "
