@@ -208,6 +208,10 @@ def test_panda_random_section_shows_only_finished_tasks(tmp_path, monkeypatch):
     assert "| method | press-button, 10 demos |" in text  # the unfinished pick-place run makes no column
     assert "| ACT | 4/20 (8-42%) |" in text  # Wilson 95% for 4/20: 8.1-41.6%
     assert "| R&D-AI | not run yet |" in text
+    fit = {"rows": [{"method": "rnd_ai", "task": "press-button", "successes": 0, "episodes": 10},
+                    {"method": "act", "task": "press-button", "successes": 8, "episodes": 10}]}  # fmt: skip
+    (tmp_path / w.PANDA_RANDOM_FIT).write_text(json.dumps(fit))
+    assert "R&D-AI press-button 0/10, ACT press-button 8/10" in "\n".join(w.panda_random_section())
 
 
 def test_panda_spatial_section_shows_only_finished_cells_and_the_heat_maps_that_exist(tmp_path, monkeypatch):
