@@ -86,6 +86,10 @@ STATUS: dict[str, tuple[str, str]] = {
                                              "--extra-steps 40; 703 frames against 403): 2/20, slopes x 0.01, y "
                                              "-0.02, z 0.18, a median 15 cm from the ball at the end, within 3 cm of "
                                              "the table in 17 of 20: holding demos change nothing.")),
+    "trace_so101_reach_rnd_ai_6000.json": (CURRENT, ("The same for R&D-AI trained 6,000 steps instead of 3,000 on "
+                                           "the same 10 demos (loss 0.036 against 0.083): 2/20, slopes x 0.11, y "
+                                           "0.21, z 0.38, a median 13 cm from the ball at the end, within 3 cm of "
+                                           "the table in 17 of 20: longer training changes nothing.")),
     "train_placements_so101_reach_n10.json": (CURRENT, ("The so101_random reach-target checkpoints (10 demos) on "
                                               "their own 10 demo placements: R&D-AI 5/10, ACT 5/10. Neither "
                                               "reproduces its demos.")),
