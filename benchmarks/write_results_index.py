@@ -136,6 +136,14 @@ STATUS: dict[str, tuple[str, str]] = {
                                                         "frame 0), then follows x and y (0.85, 0.78 at frame 8).")),
     "chunk_goal_response_panda_press_act_n10.json": (CURRENT, ("The same for the panda_random ACT press-button "
                                                        "checkpoint: slopes x 1.03, y 1.01, yaw 1.00 at frame 0.")),
+    "denoiser_goal_response_panda_press_n10.json": (CURRENT, ("The panda_random R&D-AI press-button checkpoint's "
+                                                      "sampler split into its parts, on its own demos: at frame 0 "
+                                                      "the network's own clean estimate from pure noise follows the "
+                                                      "demos' x by 0.65 and y by 0.22 (the sampler 0.47, 0.16), so "
+                                                      "the network itself does not read the button's y; at frame 8 "
+                                                      "the estimate follows x, y, z (0.99, 0.94, 0.67) but the "
+                                                      "image-space path the one-step sampler uses loses z (0.22; "
+                                                      "sampler 0.17).")),
     "panda_pair_single": (CURRENT, ("Issue 35: the Panda pair's single-task control, R&D-AI trained on lift-red-cube "
                           "alone (10 random demos, the two-cube scene, 3,000 steps), 50 test episodes from seed 1000: "
                           "3/50 (loss 0.166). The two-cube scene is not learned from 10 demos even without a second "
