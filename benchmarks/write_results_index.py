@@ -144,6 +144,16 @@ STATUS: dict[str, tuple[str, str]] = {
                                                       "the estimate follows x, y, z (0.99, 0.94, 0.67) but the "
                                                       "image-space path the one-step sampler uses loses z (0.22; "
                                                       "sampler 0.17).")),
+    "denoiser_goal_response_panda_press_n10_no_wrist.json": (CURRENT, ("The same with the wrist camera fed as a "
+                                                               "uniform grey image (--blank-camera): the network's "
+                                                               "estimate moves by at most 0.006 in any slope at frames "
+                                                               "0 and 8, the sampler's translation and yaw by at most "
+                                                               "0.013: the network does not use the wrist view.")),
+    "denoiser_goal_response_panda_press_n10_no_front.json": (CURRENT, ("The same with the front camera blanked: no "
+                                                               "goal response at frame 0 (slopes -0.02 to 0.06); at "
+                                                               "frame 8 the network's estimate still follows x 0.60, "
+                                                               "y 1.10, from what it has left (the wrist view, the "
+                                                               "rendered past gripper).")),
     "panda_pair_single": (CURRENT, ("Issue 35: the Panda pair's single-task control, R&D-AI trained on lift-red-cube "
                           "alone (10 random demos, the two-cube scene, 3,000 steps), 50 test episodes from seed 1000: "
                           "3/50 (loss 0.166). The two-cube scene is not learned from 10 demos even without a second "
