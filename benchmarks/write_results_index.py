@@ -154,6 +154,15 @@ STATUS: dict[str, tuple[str, str]] = {
                                                                "frame 8 the network's estimate still follows x 0.60, "
                                                                "y 1.10, from what it has left (the wrist view, the "
                                                                "rendered past gripper).")),
+    "denoiser_goal_response_so101_reach_n10.json": (CURRENT, ("The so101_random R&D-AI reach-target checkpoint split "
+                                                      "the same way, on its own demos: the network's estimate "
+                                                      "follows the demos' chunk end with slopes 0.85-1.22 at frame 0 "
+                                                      "and 0.67-0.89 at frame 8, the sampler as closely: on the "
+                                                      "SO-101 the first chunk reads the ball; the failure builds up "
+                                                      "in closed loop.")),
+    "denoiser_goal_response_so101_reach_n10_no_wrist.json": (CURRENT, ("The same with the wrist camera blanked: "
+                                                               "frame-0 slopes 0.09-0.15 lower, frame 8 within "
+                                                               "0.07: this network uses the wrist view somewhat.")),
     "panda_pair_single": (CURRENT, ("Issue 35: the Panda pair's single-task control, R&D-AI trained on lift-red-cube "
                           "alone (10 random demos, the two-cube scene, 3,000 steps), 50 test episodes from seed 1000: "
                           "3/50 (loss 0.166). The two-cube scene is not learned from 10 demos even without a second "
@@ -177,7 +186,7 @@ STATUS: dict[str, tuple[str, str]] = {
                       "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27, ACT 0/27; with 16 demos R&D-AI 13/27, ACT 6/27 "
                       "(its loss still falling, 0.23); push-block (a random target per "
                       "episode, demos and test cells alike; the earlier rule is archived as "
-                      "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27, ACT 0/27; slide-block (the target 10 cm along the block's +y axis, RLBench's "
+                      "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27, ACT 0/27, with 2 demos both 0/27, with 4 R&D-AI 0/27 (ACT not run); slide-block (the target 10 cm along the block's +y axis, RLBench's "
                       "slide-block-to-target) with 8 demos R&D-AI 1/27, ACT 1/27, with 16 demos R&D-AI 0/27; "
                       "on their own 8 "
                       "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8, Diffusion Policy "
