@@ -89,12 +89,18 @@ def predict_chunk(policy, pre, past: list[dict], draws: int, task: str | None = 
     return policy.predict_action_chunk(batch)
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--policy-path", required=True, help="a pretrained_model folder")
+def add_demo_frame_args(p: argparse.ArgumentParser, policy_help: str = "a pretrained_model folder") -> None:
+    """The arguments every open-loop probe on a checkpoint's own demos takes: --policy-path, --dataset-root,
+    --repo-id, --frames."""
+    p.add_argument("--policy-path", required=True, help=policy_help)
     p.add_argument("--dataset-root", required=True, help="the LeRobot dataset the policy was trained on")
     p.add_argument("--repo-id", default=None, help="the dataset's repo id (default: local/<folder name>)")
     p.add_argument("--frames", default="0,8,16", help="start frames within each episode, comma-separated")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_demo_frame_args(p)
     p.add_argument("--draws", type=int, default=8, help="chunks sampled per observation")
     p.add_argument("--seed", type=int, default=0, help="torch seed of the noise draws")
     p.add_argument("--still-history", action="store_true",

@@ -36,7 +36,7 @@ import torch
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
-from benchmarks.chunk_goal_response import response_stats
+from benchmarks.chunk_goal_response import add_demo_frame_args, response_stats
 from benchmarks.harness.files import write_result_json
 
 SOURCES = ("action_head", "image_path", "sampler")
@@ -101,10 +101,7 @@ def estimates(
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--policy-path", required=True, help="an R&D pretrained_model folder")
-    p.add_argument("--dataset-root", required=True, help="the LeRobot dataset the policy was trained on")
-    p.add_argument("--repo-id", default=None, help="the dataset's repo id (default: local/<folder name>)")
-    p.add_argument("--frames", default="0,8,16", help="start frames within each episode, comma-separated")
+    add_demo_frame_args(p, policy_help="an R&D pretrained_model folder")
     p.add_argument(
         "--step", type=int, default=None, help="diffusion step k of the clean estimates (default K - 1)"
     )
