@@ -482,6 +482,8 @@ def commands_of(path: Path) -> list[str]:
         if not isinstance(data, dict):
             continue
         bench = data.get("benchmark")
+        if isinstance(bench, dict):  # a report joined from several calls (run_benchmark.py) lists the earlier ones
+            commands += [_python(c) for c in bench.get("earlier_commands") or [] if isinstance(c, str)]
         if isinstance(bench, dict) and bench.get("command"):
             commands.append(_python(bench["command"]))
         if isinstance(data.get("command"), str) and not data.get("method"):  # a run JSON's commands are lerobot's

@@ -617,3 +617,41 @@ def test_a_multitask_run_gives_one_row_per_task_and_counts_its_cost_once(tmp_pat
     assert [r["train_seconds"] for r in rows] == [2.0, None] and [r["eval_seconds"] for r in rows] == [5.0, 0]
     assert rows[0]["loss_curve"] and rows[1]["loss_curve"] is None
     assert b.dataset_root(unit, 10)[1].startswith("local/mw_mt2-") and len(b.dataset_root(unit, 10)[1]) < 60
+
+
+def _done_run(k: int, n: int) -> dict:
+    return {"status": "done", "eval_chunks": {"0:2": {"successes": [True] * k + [False] * (n - k), "wall_s": 1.0,
+                                                      "dir": "x"}}}  # fmt: skip
+
+
+def test_resuming_a_subset_adds_its_runs_to_the_report_instead_of_replacing_it(tmp_path):
+    """A call with --tasks / --demos / --methods narrower than the report in --out once rewrote results.json with
+    that subset only; the report now keeps the earlier call's runs, datasets and evaluation placements, unless the
+    earlier report was trained otherwise."""
+    common = ["--scale", "smoke", "--steps", "10", "--batch-size", "4", "--out", str(tmp_path / "o"),
+              "--work-dir", str(tmp_path / "w"), "--data-dir", str(tmp_path / "d")]  # fmt: skip
+    out = tmp_path / "o"
+    (out / "runs").mkdir(parents=True)
+    earlier = {"benchmark": {"suite": "metaworld", "protocol": "random", "scale": "smoke", "multitask": False,
+                             "tasks": ["drawer-close-v3", "reach-v3"], "demos": [3, 6], "methods": ["rnd_ai", "act"],
+                             "seeds": [0], "command": "run_benchmark.py --tasks drawer-close-v3,reach-v3"},
+               "settings": {"matched": {"steps": 10, "batch_size": 4}},
+               "datasets": {"drawer-close-v3": {"3": {"root": "d/drawer3"}}},
+               "eval_sets": {"drawer-close-v3": {"seeds": [1000, 1001], "placements": [[0], [1]]}}}  # fmt: skip
+    (out / "results.json").write_text(json.dumps(earlier))
+    (out / "runs" / "rnd_ai__drawer-close-v3__n6__seed0.json").write_text(json.dumps(_done_run(2, 2)))
+    (out / "runs" / "act__reach-v3__n3__seed0.json").write_text(json.dumps(_done_run(1, 2)))
+    b = Benchmark(cli.parse_args([*common, "--tasks", "reach-v3", "--demos", "3", "--methods", "act"]))
+    assert b.report_axes() == (["drawer-close-v3", "reach-v3"], [3, 6], [0], ["rnd_ai", "act"])
+    rows = {(r["method"], r["task"], r["demos"]): r for r in b.collect()}
+    assert len(rows) == 2 * 2 * 2
+    assert rows["rnd_ai", "drawer-close-v3", 6]["successes"] == 2  # the earlier call's run, kept
+    assert rows["rnd_ai", "drawer-close-v3", 6]["eval_episodes_planned"] == 2  # with its evaluation placements
+    assert rows["act", "reach-v3", 3]["successes"] == 1  # this call's run
+    assert rows["act", "drawer-close-v3", 3]["status"] == "pending"
+    assert b.datasets["drawer-close-v3"][3] == {"root": "d/drawer3"}
+    assert b.earlier_commands() == ["run_benchmark.py --tasks drawer-close-v3,reach-v3"]
+    # a report trained for another number of steps is not joined: this call's axes only
+    other = Benchmark(cli.parse_args([*common[:2], "--steps", "20", *common[4:], "--tasks", "reach-v3", "--demos",
+                                      "3", "--methods", "act"]))  # fmt: skip
+    assert other.report_axes() == (["reach-v3"], [3], [0], ["act"]) and other.earlier_commands() == []

@@ -81,3 +81,13 @@ def test_current_results_name_config_files_that_exist():
     assert any("/so101/" in p for p in named), "expected the SO-101 configs among the current results"
     missing = sorted(p for p in named if not (w.REPO / p).exists())
     assert not missing, missing
+
+
+def test_a_report_joined_from_several_calls_lists_every_call_oldest_first(tmp_path):
+    folder = tmp_path / "spatial"
+    folder.mkdir()
+    bench = {"earlier_commands": ["/v/bin/python run_benchmark.py --tasks a,b", "/v/bin/python3.11 run_benchmark.py --tasks b"],
+             "command": "/v/bin/python run_benchmark.py --tasks b --demos 4"}  # fmt: skip
+    (folder / "results.json").write_text(json.dumps({"benchmark": bench}))
+    assert w.commands_of(folder) == ["python run_benchmark.py --tasks a,b", "python run_benchmark.py --tasks b",
+                                     "python run_benchmark.py --tasks b --demos 4"]  # fmt: skip

@@ -781,17 +781,63 @@ class Benchmark:
         """One row per (method, task, demos, seed); a --multitask run gives one row per task, all with the same
         checkpoint, and its training and evaluation cost and loss curve on its first task's row only (so that sums
         over rows count each run once)."""
-        a = self.a
+        units, demos, seeds, methods = self.report_axes()
         runs = []
-        for unit in self.units:
-            for n in a.demos:
-                for seed in a.seeds:
-                    for method in a.methods:
+        for unit in units:
+            for n in demos:
+                for seed in seeds:
+                    for method in methods:
                         rdir = self.run_dir(method, unit, n, seed)
                         st = self.run_state(method, unit, n, seed)
                         for i, task in enumerate(unit_tasks(unit)):
                             runs.append(self._row(method, unit, task, n, seed, rdir, st, first=i == 0))
         return runs
+
+    def previous_report(self) -> dict | None:
+        """--out's results.json if an earlier call of the same benchmark (suite, protocol, scale, steps, batch size,
+        training recipe, one- or multi-task) wrote it, else None."""
+        a = self.a
+        prev = _read_json(self.out / "results.json")
+        if not prev or "benchmark" not in prev:
+            return None
+        b, matched = prev["benchmark"], prev.get("settings", {}).get("matched", {})
+        same = (b.get("suite", "metaworld") == self.suite_name and b.get("protocol") == a.protocol
+                and b.get("scale") == a.scale and bool(b.get("multitask")) == bool(getattr(a, "multitask", False))
+                and matched.get("steps") == a.steps and matched.get("batch_size") == a.batch_size
+                and (b.get("train_arg") or []) == (a.train_arg or []))  # fmt: skip
+        return prev if same else None
+
+    def report_axes(self) -> tuple[list[str], list[int], list[int], list[str]]:
+        """The (units, demos, seeds, methods) results.json covers: this call's, joined with those of the report an
+        earlier call of the same benchmark left in --out, so that resuming a subset (``--tasks push-block --demos
+        4``) adds its runs to the report instead of replacing it. The earlier report's datasets and evaluation
+        placements of units this call did not touch are kept with it."""
+        a = self.a
+        units, demos, seeds, methods = list(self.units), list(a.demos), list(a.seeds), list(a.methods)
+        prev = self.previous_report()
+        if prev is None:
+            return units, demos, seeds, methods
+        b = prev["benchmark"]
+        prev_units = [",".join(b["tasks"])] if b.get("multitask") else list(b.get("tasks", []))
+        units = prev_units + [u for u in units if u not in prev_units]
+        methods = b.get("methods", []) + [m for m in methods if m not in b.get("methods", [])]
+        demos, seeds = sorted({*b.get("demos", []), *demos}), sorted({*b.get("seeds", []), *seeds})
+        for task, sets in prev.get("eval_sets", {}).items():
+            self.eval_sets.setdefault(task, sets)
+        for task, by_n in prev.get("datasets", {}).items():
+            mine = self.datasets.setdefault(task, {})
+            for n, d in by_n.items():
+                mine.setdefault(int(n), d)
+        return units, demos, seeds, methods
+
+    def earlier_commands(self) -> list[str]:
+        """The commands of the earlier calls whose runs the report joins (report_axes), oldest first."""
+        prev = self.previous_report()
+        if prev is None:
+            return []
+        now = shlex.join([sys.executable, *sys.argv])
+        cmds = [*prev["benchmark"].get("earlier_commands", []), prev["benchmark"].get("command")]
+        return [c for i, c in enumerate(cmds) if c and c != now and c not in cmds[:i]]
 
     def _row(self, method: str, unit: str, task: str, n: int, seed: int, rdir: Path, st: dict, first: bool) -> dict:
         """results.json's row of ``task`` in the run ``st`` of ``unit``."""
@@ -840,6 +886,7 @@ class Benchmark:
         a = self.a
         if a.dry_run:
             return
+        units, demos, seeds, methods = self.report_axes()
         runs = self.collect()
         import lerobot
         import torch
@@ -851,14 +898,14 @@ class Benchmark:
                 "action_chunk_executed": 8, "rnd_chunk": 8, "act_chunk": 8,
                 "diffusion_horizon": next((x.split("=", 1)[1] for x in self.method_args("diffusion")
                                            if x.startswith("--policy.horizon=")), "the config's"),
-                "batch_size": a.batch_size, "steps": a.steps, "seeds": a.seeds,
+                "batch_size": a.batch_size, "steps": a.steps, "seeds": seeds,
                 "pretrained_weights": "none: ACT's ImageNet ResNet-18 cannot be downloaded here "
                                       "(--policy.pretrained_backbone_weights=null); DP and R&D use none",
                 "optimiser": "each method's own preset in its config file (config_files below): R&D AdamW with "
                              "the config's optimizer_lr and cosine decay; ACT AdamW 1e-4; DP Adam 1e-4, cosine",
             },
-            "method_args": {m: self.method_args(m) for m in a.methods},
-            "config_files": {m: _rel(self.config_file(m)) for m in a.methods},
+            "method_args": {m: self.method_args(m) for m in methods},
+            "config_files": {m: _rel(self.config_file(m)) for m in methods},
             "record_seed": a.record_seed, "eval_seed": a.eval_seed, "episode_length": a.episode_length,
             "image_size": self.image_size(),
             "demo_extra_steps": recorder_extra_steps() if self.other_extra_steps() is None else self.other_extra_steps(),
@@ -874,10 +921,12 @@ class Benchmark:
             settings["demo_placements"] = DEMO_PLACEMENTS[self.placements_mode()]
         result = {
             "benchmark": {
-                "scale": a.scale, "suite": self.suite_name, "protocol": a.protocol, "multitask": bool(getattr(a, "multitask", False)), "tasks": a.tasks, "demos": a.demos, "methods": a.methods,
-                "seeds": a.seeds, "device": a.device, "complete": complete, "harness_version": HARNESS_VERSION,
+                "scale": a.scale, "suite": self.suite_name, "protocol": a.protocol, "multitask": bool(getattr(a, "multitask", False)),
+                "tasks": list(dict.fromkeys(t for u in units for t in unit_tasks(u))), "demos": demos,
+                "methods": methods, "seeds": seeds, "device": a.device, "complete": complete, "harness_version": HARNESS_VERSION,
                 "started": self.started, "written": dt.datetime.now().isoformat(timespec="seconds"),
                 "command": shlex.join([sys.executable, *sys.argv]), "train_arg": a.train_arg or [],
+                "earlier_commands": self.earlier_commands(),
                 "collect_from": [_rel(f) for f in self.collect_from],
                 "host": {"platform": platform.platform(), "python": platform.python_version(),
                          "cpus": os.cpu_count(), "torch": torch.__version__, "lerobot": lerobot.__version__,
@@ -885,7 +934,8 @@ class Benchmark:
                 "work_dir": _rel(self.work),
             },
             "settings": settings,
-            "datasets": {t: {str(n): d for n, d in v.items()} for t, v in self.datasets.items()},
+            "datasets": {t: {str(n): d for n, d in sorted(self.datasets[t].items())}
+                         for t in sorted(self.datasets, key=lambda t: units.index(t) if t in units else len(units))},
             "eval_sets": self.eval_sets,
             "runs": runs,
             "rnd_losses": rnd_losses(runs),
