@@ -887,6 +887,7 @@ class Benchmark:
         if a.dry_run:
             return
         units, demos, seeds, methods = self.report_axes()
+        tasks = list(dict.fromkeys(t for u in units for t in unit_tasks(u)))
         runs = self.collect()
         import lerobot
         import torch
@@ -922,7 +923,7 @@ class Benchmark:
         result = {
             "benchmark": {
                 "scale": a.scale, "suite": self.suite_name, "protocol": a.protocol, "multitask": bool(getattr(a, "multitask", False)),
-                "tasks": list(dict.fromkeys(t for u in units for t in unit_tasks(u))), "demos": demos,
+                "tasks": tasks, "demos": demos,
                 "methods": methods, "seeds": seeds, "device": a.device, "complete": complete, "harness_version": HARNESS_VERSION,
                 "started": self.started, "written": dt.datetime.now().isoformat(timespec="seconds"),
                 "command": shlex.join([sys.executable, *sys.argv]), "train_arg": a.train_arg or [],
@@ -936,7 +937,8 @@ class Benchmark:
             "settings": settings,
             "datasets": {t: {str(n): d for n, d in sorted(self.datasets[t].items())}
                          for t in sorted(self.datasets, key=lambda t: units.index(t) if t in units else len(units))},
-            "eval_sets": self.eval_sets,
+            "eval_sets": {t: self.eval_sets[t] for t in sorted(self.eval_sets, key=lambda t: (t not in tasks, tasks.index(t)
+                                                                                          if t in tasks else 0))},
             "runs": runs,
             "rnd_losses": rnd_losses(runs),
         }  # fmt: skip
