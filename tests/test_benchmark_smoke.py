@@ -655,3 +655,10 @@ def test_resuming_a_subset_adds_its_runs_to_the_report_instead_of_replacing_it(t
     other = Benchmark(cli.parse_args([*common[:2], "--steps", "20", *common[4:], "--tasks", "reach-v3", "--demos",
                                       "3", "--methods", "act"]))  # fmt: skip
     assert other.report_axes() == (["reach-v3"], [3], [0], ["act"]) and other.earlier_commands() == []
+
+
+def test_report_dicts_follow_the_reports_task_order():
+    from benchmarks.harness.runs import _in_order
+
+    got = _in_order({"push": 1, "extra": 2, "lift": 3}, ["lift", "slide", "push"])
+    assert list(got) == ["lift", "push", "extra"] and got == {"push": 1, "extra": 2, "lift": 3}

@@ -87,6 +87,12 @@ def override_flags(args: list[str]) -> list[str]:
     return [a for i, a in enumerate(args) if last[a.partition("=")[0]] == i]
 
 
+def _in_order(by_key: dict, order: list) -> dict:
+    """`by_key` with the keys listed in `order` first, in that order (a report's tasks as it lists them), then the
+    rest as they were: results.json stays in one order whichever call wrote it."""
+    return {k: by_key[k] for k in sorted(by_key, key=lambda k: order.index(k) if k in order else len(order))}
+
+
 class Benchmark:
     def __init__(self, a: argparse.Namespace):
         self.a = a
@@ -935,10 +941,8 @@ class Benchmark:
                 "work_dir": _rel(self.work),
             },
             "settings": settings,
-            "datasets": {t: {str(n): d for n, d in sorted(self.datasets[t].items())}
-                         for t in sorted(self.datasets, key=lambda t: units.index(t) if t in units else len(units))},
-            "eval_sets": {t: self.eval_sets[t] for t in sorted(self.eval_sets, key=lambda t: (t not in tasks, tasks.index(t)
-                                                                                          if t in tasks else 0))},
+            "datasets": {t: {str(n): d for n, d in sorted(v.items())} for t, v in _in_order(self.datasets, units).items()},
+            "eval_sets": _in_order(self.eval_sets, tasks),
             "runs": runs,
             "rnd_losses": rnd_losses(runs),
         }  # fmt: skip
