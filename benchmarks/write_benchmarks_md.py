@@ -837,6 +837,39 @@ def panda_spatial_section() -> list[str]:
     ]
 
 
+MW_SPATIAL_FOLDER = "cpu_3000_button_spatial"
+MW_SPATIAL_TASK = "button-press-topdown-v3"
+
+
+def metaworld_spatial_section() -> list[str]:
+    """MetaWorld's spatial protocol (issue 33: one MetaWorld task, 2, 4, 8, 16 furthest-point demos, R&D-AI and
+    ACT): one row per method, one column per demo count that some method has finished, from MW_SPATIAL_FOLDER's run
+    JSON; its heat map; R&D-AI against ACT over the cells with 8 demos or fewer. [] until a run has finished."""
+    columns = [(MW_SPATIAL_TASK, n) for n in PANDA_SPATIAL_DEMOS]
+    table = method_by_run_table(MW_SPATIAL_FOLDER, columns, keep=lambda t, n, finished: finished)
+    if not table:
+        return []
+    folder = RESULTS / MW_SPATIAL_FOLDER
+    heat = folder / f"heatmap_{MW_SPATIAL_TASK}.png"
+    gap = few_demo_gap(MW_SPATIAL_FOLDER, columns)
+    return [
+        f"### MetaWorld `{MW_SPATIAL_TASK}`, spatial protocol (furthest-point demos)",
+        "",
+        ("Demos by furthest-point sampling over the button's (x, y), the first at the placement nearest the range's "
+         "mean; evaluation on a 5 x 5 grid over x and y, edges included (25 episodes per cell of the table, Wilson 95% "
+         "intervals); 3,000 training steps at batch 8, the configs of `policies_config/metaworld/`; one call per "
+         "method and demo count: `python benchmarks/run_benchmark.py --scale cpu --protocol spatial --tasks "
+         f"{MW_SPATIAL_TASK} --demos N --methods M --steps 3000 --resume --out benchmarks/results/{MW_SPATIAL_FOLDER}` "
+         f"([`{MW_SPATIAL_FOLDER}`](../benchmarks/results/{MW_SPATIAL_FOLDER}/"
+         f"{'results.md' if (folder / 'results.md').exists() else 'runs/'})"
+         + (f"; [heat map](../benchmarks/results/{MW_SPATIAL_FOLDER}/{heat.name}) with the training placements "
+            "marked" if heat.exists() else "") + ")."),
+        "",
+        *table,
+        *(["", "R&D-AI against each baseline over the cells with few demos:", "", *gap] if gap else []),
+    ]
+
+
 PANDA_RANDOM_FOLDER = "panda_random"
 PANDA_RANDOM_TASKS = ("pick-place", "press-button")
 PANDA_RANDOM_FIT = "train_placements_panda_press_n10.json"  # the press-button checkpoints on their own demos
@@ -934,6 +967,8 @@ def current_block() -> list[str]:
         parts += panda + [""]
         longer = panda_training_length_section()
         parts += longer + [""] if longer else []
+    mw_spatial = metaworld_spatial_section()
+    parts += mw_spatial + [""] if mw_spatial else []
     random_protocol = panda_random_section()
     parts += random_protocol + [""] if random_protocol else []
     train_steps = [(p.name, _load(p)) for p in sorted(RESULTS.glob("train_step_cpu*.json"))]

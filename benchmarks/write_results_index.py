@@ -179,6 +179,10 @@ STATUS: dict[str, tuple[str, str]] = {
                            "cells: R&D-AI 22/27 (21/27 at 3,000 steps; loss 0.068), ACT 3/27 (4/27 at 3,000; "
                            "loss 0.129 -> 0.059). ACT's training cost counts only steps 2,000-6,000 (the first 2,000 "
                            "ran in an earlier session, and the run resumed from their checkpoint).")),
+    "cpu_3000_button_spatial": (CURRENT, ("Issue 33, in progress: MetaWorld button-press-topdown-v3, spatial protocol "
+                                "(furthest-point demos over the button's x, y; a 5 x 5 test grid over both, edges "
+                                "included), 3,000 steps, R&D-AI and ACT with 2, 4, 8 and 16 demos; one call per method "
+                                "and demo count, joined into one report.")),
     "panda_spatial": (CURRENT, ("Issue 33, in progress: Panda lift-cube and push-block, spatial protocol (furthest-point demos from the "
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps, "
                       "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
@@ -186,7 +190,7 @@ STATUS: dict[str, tuple[str, str]] = {
                       "R&D-AI 3/27, ACT 0/27; with 4 demos R&D-AI 6/27, ACT 0/27; with 16 demos R&D-AI 13/27, ACT 6/27 "
                       "(its loss still falling, 0.23); push-block (a random target per "
                       "episode, demos and test cells alike; the earlier rule is archived as "
-                      "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27, ACT 0/27, with 2 demos both 0/27, with 4 R&D-AI 0/27 (ACT not run); slide-block (the target 10 cm along the block's +y axis, RLBench's "
+                      "archive/panda_spatial_push_centre_target) with 8 demos R&D-AI 0/27, ACT 0/27, with 2 demos both 0/27, with 4 and 16 both 0/27; slide-block (the target 10 cm along the block's +y axis, RLBench's "
                       "slide-block-to-target) with 8 demos R&D-AI 1/27, ACT 1/27, with 16 demos R&D-AI 0/27; "
                       "on their own 8 "
                       "demo placements (train_placements_lift-cube_n8.json) R&D-AI 5/8, ACT 7/8, Diffusion Policy "
