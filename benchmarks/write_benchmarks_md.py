@@ -774,24 +774,24 @@ PANDA_SPATIAL_TASKS = ("lift-cube", "slide-block", "push-block")
 PANDA_SPATIAL_DEMOS = (2, 4, 8, 16)
 
 
-def few_demo_gap(folder: str, columns: list[tuple[str, int]], max_demos: int = 8) -> list[str]:
+def few_demo_gap(cells: list[tuple[str, str, int]], max_demos: int = 8) -> list[str]:
     """Issue 33's done condition, one line per baseline of TABLE_METHODS: R&D-AI's and the baseline's successes
-    summed over the (task, demos) cells of `columns` with at most `max_demos` demos that both have finished, and
-    the difference of the two rates in points. [] when no baseline shares such a cell with R&D-AI."""
+    summed over the (results folder, task, demos) `cells` with at most `max_demos` demos that both have finished,
+    and the difference of the two rates in points. [] when no baseline shares such a cell with R&D-AI."""
     lines = []
-    few = [(t, n) for t, n in columns if n <= max_demos]
+    few = [(folder, t, n) for folder, t, n in cells if n <= max_demos]
     for method, name in TABLE_METHODS.items():
         if method == "rnd_ai":
             continue
-        pairs = [(run_file_cells(folder, "rnd_ai", (t,), demos=n).get(t), run_file_cells(folder, method, (t,),
-                  demos=n).get(t), f"{t} {n}") for t, n in few]  # fmt: skip
+        pairs = [(run_file_cells(f, "rnd_ai", (t,), demos=n).get(t), run_file_cells(f, method, (t,), demos=n).get(t),
+                  f"{t} {n}") for f, t, n in few]  # fmt: skip
         pairs = [p for p in pairs if p[0] and p[1]]
         if not pairs:
             continue
         (k_r, n_r), (k_b, n_b) = ([sum(p[i][j] for p in pairs) for j in (0, 1)] for i in (0, 1))
         gap = 100 * (k_r / n_r - k_b / n_b)
-        cells = f"{len(pairs)} cell{'s' * (len(pairs) != 1)}"
-        lines.append(f"- Against {name}, over the {cells} with {max_demos} demos or fewer that both have "
+        count = f"{len(pairs)} cell{'s' * (len(pairs) != 1)}"
+        lines.append(f"- Against {name}, over the {count} with {max_demos} demos or fewer that both have "
                      f"finished ({', '.join(p[2] for p in pairs)}): R&D-AI {cell(k_r, n_r)}, {name} "
                      f"{cell(k_b, n_b)}, a difference of {gap:+.0f} points (the issue asks for +15).")  # fmt: skip
     return lines
@@ -833,7 +833,7 @@ def panda_spatial_section() -> list[str]:
         "",
         *table,
         *(["", "R&D-AI against each baseline over the cells with few demos (issue 33's done condition):", "",
-            *gap] if (gap := few_demo_gap(PANDA_SPATIAL_FOLDER, columns)) else []),
+            *gap] if (gap := few_demo_gap([(PANDA_SPATIAL_FOLDER, t, n) for t, n in columns])) else []),
     ]
 
 
@@ -851,7 +851,9 @@ def metaworld_spatial_section() -> list[str]:
         return []
     folder = RESULTS / MW_SPATIAL_FOLDER
     heat = folder / f"heatmap_{MW_SPATIAL_TASK}.png"
-    gap = few_demo_gap(MW_SPATIAL_FOLDER, columns)
+    gap = few_demo_gap([(MW_SPATIAL_FOLDER, t, n) for t, n in columns])
+    both = few_demo_gap([(PANDA_SPATIAL_FOLDER, t, n) for t in PANDA_SPATIAL_TASKS for n in PANDA_SPATIAL_DEMOS]
+                        + [(MW_SPATIAL_FOLDER, t, n) for t, n in columns])  # fmt: skip
     return [
         f"### MetaWorld `{MW_SPATIAL_TASK}`, spatial protocol (furthest-point demos)",
         "",
@@ -867,6 +869,8 @@ def metaworld_spatial_section() -> list[str]:
         "",
         *table,
         *(["", "R&D-AI against each baseline over the cells with few demos:", "", *gap] if gap else []),
+        *(["", "Over the spatial protocol's cells of both suites (the Panda tasks above and this one):", "", *both]
+          if gap else []),
     ]
 
 

@@ -244,12 +244,13 @@ def test_few_demo_gap_sums_only_cells_both_methods_finished_with_at_most_8_demos
     runs = tmp_path / w.PANDA_SPATIAL_FOLDER / "runs"
     runs.mkdir(parents=True)
 
-    def run(name, k, n=27, status="done"):
+    def run(name, k, n=27, status="done", folder=runs):
         chunk = {"0:27": {"successes": [True] * k + [False] * (n - k)}}
-        (runs / f"{name}__seed0.json").write_text(json.dumps({"status": status, "eval_chunks": chunk}))
+        (folder / f"{name}__seed0.json").write_text(json.dumps({"status": status, "eval_chunks": chunk}))
 
     columns = [("lift-cube", 2), ("lift-cube", 8), ("lift-cube", 16), ("push-block", 8)]
-    assert w.few_demo_gap(w.PANDA_SPATIAL_FOLDER, columns) == []  # nothing shared: no line
+    cells = [(w.PANDA_SPATIAL_FOLDER, t, n) for t, n in columns]
+    assert w.few_demo_gap(cells) == []  # nothing shared: no line
     run("rnd_ai__lift-cube__n2", 3)
     run("act__lift-cube__n2", 0)
     run("rnd_ai__lift-cube__n8", 21)
@@ -259,13 +260,22 @@ def test_few_demo_gap_sums_only_cells_both_methods_finished_with_at_most_8_demos
     run("rnd_ai__push-block__n8", 0)  # ACT's push-block run unfinished: the cell is not shared
     run("act__push-block__n8", 27, status="training")
     run("diffusion__lift-cube__n8", 9)
-    lines = w.few_demo_gap(w.PANDA_SPATIAL_FOLDER, columns)
+    lines = w.few_demo_gap(cells)
     # By hand: R&D-AI (3 + 21)/54 = 44.4%, ACT (0 + 4)/54 = 7.4%: +37 points; against DP only lift-cube 8:
     # 21/27 = 77.8% against 9/27 = 33.3%: +44 points.
     assert len(lines) == 2
     assert "ACT, over the 2 cells" in lines[0] and "(lift-cube 2, lift-cube 8)" in lines[0]
     assert "R&D-AI 24/54" in lines[0] and "ACT 4/54" in lines[0] and "+37 points" in lines[0]
     assert "Diffusion Policy, over the 1 cell with" in lines[1] and "9/27" in lines[1] and "+44 points" in lines[1]
+    # Cells of two results folders add up: a MetaWorld cell of 25 episodes, R&D-AI 12, ACT 5. By hand: R&D-AI
+    # (24 + 12)/79 = 45.6%, ACT (4 + 5)/79 = 11.4%: +34 points.
+    mw_runs = tmp_path / w.MW_SPATIAL_FOLDER / "runs"
+    mw_runs.mkdir(parents=True)
+    run("rnd_ai__button-press-topdown-v3__n2", 12, n=25, folder=mw_runs)
+    run("act__button-press-topdown-v3__n2", 5, n=25, folder=mw_runs)
+    lines = w.few_demo_gap(cells + [(w.MW_SPATIAL_FOLDER, "button-press-topdown-v3", 2)])
+    assert "(lift-cube 2, lift-cube 8, button-press-topdown-v3 2)" in lines[0]
+    assert "R&D-AI 36/79" in lines[0] and "ACT 9/79" in lines[0] and "+34 points" in lines[0]
 
 
 def test_panda_training_length_section_pairs_each_methods_3000_and_6000_step_runs(tmp_path, monkeypatch):
