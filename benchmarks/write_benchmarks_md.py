@@ -797,6 +797,18 @@ def few_demo_gap(cells: list[tuple[str, str, int]], max_demos: int = 8) -> list[
     return lines
 
 
+def curve_figures(folder: str) -> list[str]:
+    """The harness's success-against-demos plot of a results folder (Wilson intervals) inline, and a link to its
+    training-loss curves; [] when neither was written."""
+    out = []
+    if (RESULTS / folder / "success_vs_demos.png").exists():
+        out += ["", f"![success against the number of demos, Wilson 95% intervals](../benchmarks/results/{folder}/"
+                    + "success_vs_demos.png)"]
+    if (RESULTS / folder / "loss_curves.png").exists():
+        out += ["", f"Training losses of these runs: [loss_curves.png](../benchmarks/results/{folder}/loss_curves.png)."]
+    return out
+
+
 def panda_spatial_section() -> list[str]:
     """The Panda spatial-protocol table (issue 33): one row per method, one column per task and number of
     furthest-point demos that some method has finished, from the run JSON of PANDA_SPATIAL_FOLDER; then the
@@ -832,6 +844,7 @@ def panda_spatial_section() -> list[str]:
         "most test cells did not).",
         "",
         *table,
+        *curve_figures(PANDA_SPATIAL_FOLDER),
         *(["", "R&D-AI against each baseline over the cells with few demos (issue 33's done condition):", "",
             *gap] if (gap := few_demo_gap([(PANDA_SPATIAL_FOLDER, t, n) for t, n in columns])) else []),
     ]
@@ -863,11 +876,12 @@ def metaworld_spatial_section() -> list[str]:
          "method and demo count: `python benchmarks/run_benchmark.py --scale cpu --protocol spatial --tasks "
          f"{MW_SPATIAL_TASK} --demos N --methods M --steps 3000 --resume --out benchmarks/results/{MW_SPATIAL_FOLDER}` "
          f"([`{MW_SPATIAL_FOLDER}`](../benchmarks/results/{MW_SPATIAL_FOLDER}/"
-         f"{'results.md' if (folder / 'results.md').exists() else 'runs/'})"
-         + (f"; [heat map](../benchmarks/results/{MW_SPATIAL_FOLDER}/{heat.name}) with the training placements "
-            "marked" if heat.exists() else "") + ")."),
+         f"{'results.md' if (folder / 'results.md').exists() else 'runs/'}))."),
         "",
         *table,
+        *curve_figures(MW_SPATIAL_FOLDER),
+        *(["", f"![success per grid cell, training placements marked](../benchmarks/results/{MW_SPATIAL_FOLDER}/"
+               + f"{heat.name})"] if heat.exists() else []),
         *(["", "R&D-AI against each baseline over the cells with few demos:", "", *gap] if gap else []),
         *(["", "Over the spatial protocol's cells of both suites (the Panda tasks above and this one):", "", *both]
           if gap else []),

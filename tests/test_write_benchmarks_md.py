@@ -233,6 +233,10 @@ def test_panda_spatial_section_shows_only_finished_cells_and_the_heat_maps_that_
     assert "| ACT | not run yet |" in text and "heat maps" not in text
     (tmp_path / w.PANDA_SPATIAL_FOLDER / "heatmap_lift-cube.png").write_bytes(b"png")
     assert "heatmap_lift-cube.png" in "\n".join(w.panda_spatial_section())
+    assert "success_vs_demos.png" not in "\n".join(w.panda_spatial_section())  # the harness has not drawn it
+    (tmp_path / w.PANDA_SPATIAL_FOLDER / "success_vs_demos.png").write_bytes(b"png")
+    assert f"![success against the number of demos, Wilson 95% intervals](../benchmarks/results/" \
+           f"{w.PANDA_SPATIAL_FOLDER}/success_vs_demos.png)" in w.panda_spatial_section()
 
 
 def test_few_demo_gap_sums_only_cells_both_methods_finished_with_at_most_8_demos(tmp_path, monkeypatch):
