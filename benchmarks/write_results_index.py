@@ -182,7 +182,8 @@ STATUS: dict[str, tuple[str, str]] = {
     "cpu_3000_button_spatial": (CURRENT, ("Issue 33, in progress: MetaWorld button-press-topdown-v3, spatial protocol "
                                 "(furthest-point demos over the button's x, y; a 5 x 5 test grid over both, edges "
                                 "included), 3,000 steps, R&D-AI and ACT with 2, 4, 8 and 16 demos; one call per method "
-                                "and demo count, joined into one report: with 2 demos R&D-AI 12/25, ACT 9/25; with 4 demos R&D-AI 17/25, ACT 7/25; with 8 demos R&D-AI 24/25; with 16 demos R&D-AI 25/25.")),
+                                "and demo count, joined into one report: with 2 demos R&D-AI 12/25, ACT 9/25; with 4 "
+                                "demos R&D-AI 17/25, ACT 7/25; with 8 demos R&D-AI 24/25; with 16 demos R&D-AI 25/25.")),
     "panda_spatial": (CURRENT, ("Issue 33, in progress: Panda lift-cube and push-block, spatial protocol (furthest-point demos from the "
                       "centre, yaw compared modulo the cube's 90-degree symmetry; 27-cell x/y/yaw grid), 3,000 steps, "
                       "front camera framed on the placement range, 60-degree wrist camera, expert approaching at 0.4 "
